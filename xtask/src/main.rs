@@ -1,0 +1,25 @@
+//! `cargo xtask <task>`: project automation (matklad's xtask convention).
+//!
+//! Tasks:
+//! * `ci` — run exactly what `.ci/run` runs: format check, clippy with warnings denied, and the
+//!   README's test command. Every step runs even if an earlier one fails; the exit code is
+//!   non-zero if any failed.
+
+mod ci;
+
+fn main() -> anyhow::Result<()> {
+    let args: Vec<String> = std::env::args().skip(1).collect();
+    match args.first().map(String::as_str) {
+        Some("ci") => ci::run(),
+        Some(other) => anyhow::bail!("unknown task `{other}`\n\n{USAGE}"),
+        None => {
+            println!("{USAGE}");
+            Ok(())
+        }
+    }
+}
+
+const USAGE: &str = "usage: cargo xtask <task>
+
+tasks:
+  ci        format check, clippy -D warnings, and the test suite (what .ci/run runs)";
