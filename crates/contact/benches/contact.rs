@@ -1,0 +1,114 @@
+//! Contact hot paths:
+//! (a) barrier potential + gradient + PSD Hessian for 10⁵ particles near a boundary of ~10⁴
+//!     edges (2D) or triangles (3D), including the broad phase, 1 and 2 threads;
+//! (b) CCD time per query on the 3,085 vertex–face queries of the Wang et al. 2021 benchmark.
+//!
+//! The scenes are deterministic formulas (no RNG), reproduced exactly by
+//! `fixtures/ipctk/bench_ipctk.py`, which times the same work through the IPC Toolkit.
+//!
+//! Run: `cargo bench -p femp-contact --bench contact`.
+
+use criterion::{BenchmarkId, Criterion, Throughput, criterion_group, criterion_main};
+use femp_contact::broad_phase::{self, Candidates};
+use femp_contact::ccd::{self, CcdOptions};
+use femp_contact::{BoundaryTopology, ContactPotential, LogBarrier, particle_weight};
+use nalgebra::Vector3;
+use std::hint::black_box;
+
+#[path = "common/scenes.rs"]
+mod scenes;
+use scenes::{DHAT, scene2, scene3};
+
+fn bench_potential<const D: usize>(c: &mut Criterion, name: &str, (v, f, p): scenes::Scene<D>) {
+    let pot = ContactPotential::new(
+        LogBarrier::new(DHAT, 1e4).unwrap(),
+        BoundaryTopology::<D>::new(&f, v.len()).unwrap(),
+    );
+    let w = vec![particle_weight::<D>(1e-6); p.len()];
+    let mut group = c.benchmark_group(format!("barrier_{name}"));
+    group.sample_size(10);
+    group.throughput(Throughput::Elements(p.len() as u64));
+    for threads in [1usize, 2] {
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap();
+        let (mut cands, mut terms, mut ders) = (Candidates::default(), Vec::new(), Vec::new());
+        group.bench_with_input(
+            BenchmarkId::new("broad+energy+grad+hess", threads),
+            &threads,
+            |b, _| {
+                b.iter(|| {
+                    pool.install(|| {
+                        broad_phase::candidates_within(
+                            &p,
+                            &v,
+                            pot.topology.facets(),
+                            DHAT,
+                            &mut cands,
+                        );
+                        pot.collect_terms(&p, &w, &v, &cands, &mut terms).unwrap();
+                        let e = pot.energy(&terms);
+                        pot.derivatives(&terms, &p, &v, &mut ders);
+                        black_box((e, ders.len()))
+                    })
+                })
+            },
+        );
+    }
+    group.finish();
+}
+
+fn load_vertex_face() -> Vec<[Vector3<f64>; 8]> {
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../../fixtures/ccd-sample-queries/vertex_face.txt");
+    let text = std::fs::read_to_string(path).unwrap();
+    let mut out = Vec::new();
+    let mut lines = text
+        .lines()
+        .filter(|l| !l.starts_with('#') && !l.trim().is_empty());
+    while let Some(_head) = lines.next() {
+        let pts: [Vector3<f64>; 8] = std::array::from_fn(|_| {
+            let v: Vec<f64> = lines
+                .next()
+                .unwrap()
+                .split_whitespace()
+                .map(|t| t.parse().unwrap())
+                .collect();
+            Vector3::new(v[0], v[1], v[2])
+        });
+        lines.next();
+        out.push(pts);
+    }
+    out
+}
+
+fn bench_ccd(c: &mut Criterion) {
+    let qs = load_vertex_face();
+    let opts = CcdOptions::default();
+    let mut group = c.benchmark_group("ccd_vertex_face");
+    group.throughput(Throughput::Elements(qs.len() as u64));
+    group.bench_function("all_3085_queries", |b| {
+        b.iter(|| {
+            let mut hits = 0;
+            for p in &qs {
+                hits += ccd::point_triangle(
+                    &p[0], &p[1], &p[2], &p[3], &p[4], &p[5], &p[6], &p[7], &opts,
+                )
+                .toi
+                .is_some() as usize;
+            }
+            black_box(hits)
+        })
+    });
+    group.finish();
+}
+
+fn benches(c: &mut Criterion) {
+    bench_potential::<2>(c, "2d_100k_particles_10k_edges", scene2());
+    bench_potential::<3>(c, "3d_100k_particles_9800_triangles", scene3());
+    bench_ccd(c);
+}
+
+criterion_group!(contact, benches);
+criterion_main!(contact);

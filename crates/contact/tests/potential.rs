@@ -1,0 +1,490 @@
+//! The BFEMP contact potential (eqs. 28–32), friction (eqs. 34–37), broad phase and the batch
+//! CCD step: duplicate removal reproduces the max over facets on closed boundaries, gradients
+//! match finite differences of the energy, Hessians are PSD, friction opposes sliding with
+//! magnitude μλ, the broad phase equals brute force, and bad input is an error.
+
+use femp_contact::broad_phase::{self, Candidates};
+use femp_contact::ccd::{self, CcdOptions};
+use femp_contact::friction::{self, FrictionParams};
+use femp_contact::{
+    BoundaryTopology, ContactError, ContactPotential, LogBarrier, TermDerivatives, particle_weight,
+};
+use nalgebra::{DMatrix, DVector, SVector, Vector2, Vector3};
+
+/// Closed square polyline [−1, 1]², counter-clockwise.
+fn square() -> (Vec<Vector2<f64>>, Vec<[u32; 3]>) {
+    let v = vec![
+        Vector2::new(-1.0, -1.0),
+        Vector2::new(1.0, -1.0),
+        Vector2::new(1.0, 1.0),
+        Vector2::new(-1.0, 1.0),
+    ];
+    (v, vec![[0, 1, 0], [1, 2, 0], [2, 3, 0], [3, 0, 0]])
+}
+
+/// Closed triangulated surface of the unit cube (12 triangles).
+fn cube() -> (Vec<Vector3<f64>>, Vec<[u32; 3]>) {
+    let v: Vec<Vector3<f64>> = (0..8)
+        .map(|i| Vector3::new((i & 1) as f64, ((i >> 1) & 1) as f64, ((i >> 2) & 1) as f64))
+        .collect();
+    let quads = [
+        [0, 2, 3, 1],
+        [4, 5, 7, 6],
+        [0, 1, 5, 4],
+        [2, 6, 7, 3],
+        [0, 4, 6, 2],
+        [1, 3, 7, 5],
+    ];
+    let mut f = Vec::new();
+    for q in quads {
+        f.push([q[0], q[1], q[2]]);
+        f.push([q[0], q[2], q[3]]);
+    }
+    (v, f)
+}
+
+fn energy<const D: usize>(
+    pot: &ContactPotential<D>,
+    particles: &[SVector<f64, D>],
+    w: &[f64],
+    boundary: &[SVector<f64, D>],
+) -> Result<f64, ContactError> {
+    let mut c = Candidates::default();
+    broad_phase::candidates_within(
+        particles,
+        boundary,
+        pot.topology.facets(),
+        pot.barrier.dhat,
+        &mut c,
+    );
+    let mut terms = Vec::new();
+    pot.collect_terms(particles, w, boundary, &c, &mut terms)?;
+    Ok(pot.energy(&terms))
+}
+
+/// On a closed boundary with small d̂, the sum-minus-duplicates potential equals
+/// ω · max_facets b(d) = ω · b(distance to the boundary), in every region.
+#[test]
+fn duplicates_cancel_to_the_max_on_closed_boundaries() {
+    let (v, f) = square();
+    let b = LogBarrier::new(0.05, 1e3).unwrap();
+    let pot = ContactPotential::new(b, BoundaryTopology::<2>::new(&f, 4).unwrap());
+    let w = [0.7];
+    // Outside near a corner (vertex region), outside near an edge, inside near an edge.
+    let cases = [
+        (
+            Vector2::new(1.02, 1.03),
+            (0.02f64.powi(2) + 0.03f64.powi(2)).sqrt(),
+        ),
+        (Vector2::new(0.3, -1.01), 0.01),
+        (Vector2::new(0.3, -0.97), 0.03),
+    ];
+    for (p, dist) in cases {
+        let e = energy(&pot, &[p], &w, &v).unwrap();
+        let expect = 0.7 * b.value(dist);
+        assert!(
+            (e - expect).abs() <= 1e-12 * expect,
+            "at {p}: {e} vs {expect}"
+        );
+    }
+    // Inside near a corner: both edges are within d̂ in their interiors and the corner vertex
+    // too, so eq. 31 gives b(d₁) + b(d₂) − b(d_corner) (the sum approximates the max there).
+    let inside_corner = Vector2::new(0.98, 0.97);
+    let e = energy(&pot, &[inside_corner], &w, &v).unwrap();
+    let corner = (0.02f64.powi(2) + 0.03f64.powi(2)).sqrt();
+    let expect = 0.7 * (b.value(0.02) + b.value(0.03) - b.value(corner));
+    assert!((e - expect).abs() < 1e-9 * e, "{e} vs {expect}");
+    // Far away: nothing.
+    assert_eq!(
+        energy(&pot, &[Vector2::new(0.0, 0.0)], &w, &v).unwrap(),
+        0.0
+    );
+
+    let (v3, f3) = cube();
+    let pot3 = ContactPotential::new(
+        LogBarrier::new(0.05, 1e3).unwrap(),
+        BoundaryTopology::<3>::new(&f3, 8).unwrap(),
+    );
+    assert!(
+        pot3.topology
+            .vertex_coefficients()
+            .iter()
+            .all(|&c| c == 1.0)
+    );
+    let cases3 = [
+        (
+            Vector3::new(1.01, 1.02, 1.03),
+            (1e-4f64 + 4e-4 + 9e-4).sqrt(),
+        ), // corner
+        (Vector3::new(0.5, 1.02, 1.03), (4e-4f64 + 9e-4).sqrt()), // edge
+        (Vector3::new(0.3, 0.6, 1.02), 0.02),                     // face
+        (Vector3::new(0.5, 0.5, -0.01), 0.01),                    // face, along a diagonal
+        (Vector3::new(0.3, 0.3, 1.02), 0.02), // face, on a triangulation diagonal
+    ];
+    for (p, dist) in cases3 {
+        let e = energy(&pot3, &[p], &[0.7], &v3).unwrap();
+        let expect = 0.7 * pot3.barrier.value(dist);
+        assert!(
+            (e - expect).abs() <= 1e-10 * expect,
+            "at {p}: {e} vs {expect}"
+        );
+    }
+}
+
+fn pack<const D: usize>(a: &[SVector<f64, D>], b: &[SVector<f64, D>]) -> DVector<f64> {
+    DVector::from_iterator(
+        (a.len() + b.len()) * D,
+        a.iter().chain(b).flat_map(|x| x.iter().copied()),
+    )
+}
+
+fn accumulate<const D: usize>(
+    d: &[TermDerivatives<D>],
+    np: usize,
+    nb: usize,
+) -> (DVector<f64>, DMatrix<f64>) {
+    let n = (np + nb) * D;
+    let mut g = DVector::zeros(n);
+    let mut h = DMatrix::zeros(n, n);
+    for t in d {
+        let idx = |i: usize| {
+            if i == 0 {
+                t.particle as usize
+            } else {
+                np + t.vertices[i - 1] as usize
+            }
+        };
+        for i in 0..t.n {
+            for a in 0..D {
+                g[idx(i) * D + a] += t.grad[i][a];
+                for j in 0..t.n {
+                    for b in 0..D {
+                        h[(idx(i) * D + a, idx(j) * D + b)] += t.hess[i][j][(a, b)];
+                    }
+                }
+            }
+        }
+    }
+    (g, h)
+}
+
+/// Gradient of the whole potential (particles and boundary vertices) against finite
+/// differences; Hessian PSD and symmetric; equal to the finite-difference Hessian where the
+/// exact one is PSD (a single face term far inside its region).
+#[test]
+fn potential_gradient_and_hessian() {
+    let (v, f) = cube();
+    let pot = ContactPotential::new(
+        LogBarrier::new(0.1, 1e2).unwrap(),
+        BoundaryTopology::<3>::new(&f, 8).unwrap(),
+    );
+    let particles = vec![
+        Vector3::new(0.4, 0.55, 1.03),
+        Vector3::new(1.04, 0.97, 0.5),
+        Vector3::new(-0.02, -0.03, 1.05),
+        Vector3::new(0.5, 0.5, 0.5), // inside, far from the boundary: no terms
+    ];
+    let w = vec![0.3, 0.5, 0.2, 0.4];
+    let (np, nb) = (particles.len(), v.len());
+    let x0 = pack(&particles, &v);
+    let e = |x: &DVector<f64>| {
+        let all: Vec<Vector3<f64>> = x
+            .as_slice()
+            .chunks(3)
+            .map(Vector3::from_column_slice)
+            .collect();
+        energy(&pot, &all[..np], &w, &all[np..]).unwrap()
+    };
+    let mut c = Candidates::default();
+    broad_phase::candidates_within(&particles, &v, pot.topology.facets(), 0.1, &mut c);
+    let mut terms = Vec::new();
+    pot.collect_terms(&particles, &w, &v, &c, &mut terms)
+        .unwrap();
+    assert!(terms.len() >= 3);
+    let mut d = Vec::new();
+    pot.derivatives(&terms, &particles, &v, &mut d);
+    let (g, h) = accumulate(&d, np, nb);
+    let gfd = femp_testkit::fd_gradient(e, &x0, 1e-7);
+    assert!(
+        (&g - &gfd).amax() <= 1e-5 * g.amax(),
+        "gradient differs by {}",
+        (&g - &gfd).amax()
+    );
+    assert!((&h - h.transpose()).amax() <= 1e-9 * h.amax());
+    let hmax = h.amax();
+    assert!(h.symmetric_eigen().eigenvalues.min() >= -1e-9 * hmax);
+
+    // Single face term, particle well inside the face region: projected = exact Hessian if PSD.
+    let p1 = vec![Vector3::new(0.3, 0.6, 1.03)];
+    let x1 = pack(&p1, &v);
+    broad_phase::candidates_within(&p1, &v, pot.topology.facets(), 0.1, &mut c);
+    pot.collect_terms(&p1, &[1.0], &v, &c, &mut terms).unwrap();
+    assert_eq!(terms.len(), 1);
+    pot.derivatives(&terms, &p1, &v, &mut d);
+    let (g1, h1) = accumulate(&d, 1, nb);
+    let grad = |x: &DVector<f64>| {
+        let all: Vec<Vector3<f64>> = x
+            .as_slice()
+            .chunks(3)
+            .map(Vector3::from_column_slice)
+            .collect();
+        let mut dd = Vec::new();
+        pot.derivatives(&terms, &all[..1], &all[1..], &mut dd);
+        accumulate(&dd, 1, nb).0
+    };
+    let hfd = femp_testkit::fd_jacobian(grad, &x1, 1e-7);
+    let hfd_sym = (&hfd + hfd.transpose()) * 0.5;
+    let exact_min = hfd_sym.clone().symmetric_eigen().eigenvalues.min();
+    if exact_min >= -1e-6 * hfd_sym.amax() {
+        assert!(
+            (&h1 - &hfd_sym).amax() <= 1e-4 * h1.amax(),
+            "PSD exact Hessian was changed"
+        );
+    } else {
+        // The projection removed negative curvature only.
+        assert!(h1.clone().symmetric_eigen().eigenvalues.min() >= -1e-9 * h1.amax());
+    }
+    assert!(g1.norm() > 0.0);
+}
+
+#[test]
+fn particle_weights_are_cross_sections() {
+    // 2D: a disk of area V has diameter 2√(V/π); 3D: a ball of volume V has a great circle of
+    // area π r², r = (3V/4π)^{1/3}.
+    let v2 = std::f64::consts::PI * 0.25;
+    assert!((particle_weight::<2>(v2) - 1.0).abs() < 1e-15);
+    let v3 = 4.0 / 3.0 * std::f64::consts::PI * 8.0;
+    assert!((particle_weight::<3>(v3) - std::f64::consts::PI * 4.0).abs() < 1e-12);
+}
+
+#[test]
+fn penetration_and_bad_input_are_errors() {
+    let (v, f) = square();
+    let pot = ContactPotential::new(
+        LogBarrier::new(0.05, 1e3).unwrap(),
+        BoundaryTopology::<2>::new(&f, 4).unwrap(),
+    );
+    let on_edge = [Vector2::new(0.2, -1.0)];
+    let e = energy(&pot, &on_edge, &[1.0], &v).unwrap_err();
+    assert!(
+        matches!(
+            e,
+            ContactError::Penetration {
+                particle: 0,
+                facet: 0,
+                ..
+            }
+        ),
+        "{e}"
+    );
+    assert!(e.to_string().contains("penetration"));
+    let nan = [Vector2::new(f64::NAN, 0.0)];
+    let c = Candidates::from_lists(&[vec![0]]);
+    let mut t = Vec::new();
+    assert!(matches!(
+        pot.collect_terms(&nan, &[1.0], &v, &c, &mut t).unwrap_err(),
+        ContactError::NonFinite { .. }
+    ));
+    assert!(matches!(
+        pot.collect_terms(&nan, &[1.0, 2.0], &v, &c, &mut t)
+            .unwrap_err(),
+        ContactError::LengthMismatch { .. }
+    ));
+    let e = BoundaryTopology::<2>::new(&[[0, 9, 0]], 4).unwrap_err();
+    assert!(e.to_string().contains("references vertex 9"), "{e}");
+    let e = BoundaryTopology::<3>::new(&[[0, 1, 1]], 4).unwrap_err();
+    assert!(e.to_string().contains("repeats a vertex"), "{e}");
+    assert!(
+        FrictionParams::new(-0.1, 1e-3, 1e-2)
+            .unwrap_err()
+            .to_string()
+            .contains("mu = -0.1")
+    );
+    assert!(FrictionParams::new(0.1, 0.0, 1e-2).is_err());
+}
+
+/// Friction: gradient and Hessian against finite differences of the friction energy, in the
+/// sticking (|u| < ε) and sliding regimes, 2D and 3D; force opposes sliding with magnitude μλ.
+#[test]
+fn friction_derivatives_and_direction() {
+    let (v, f) = cube();
+    let pot = ContactPotential::new(
+        LogBarrier::new(0.1, 1e2).unwrap(),
+        BoundaryTopology::<3>::new(&f, 8).unwrap(),
+    );
+    let particles = vec![Vector3::new(0.3, 0.6, 1.03), Vector3::new(1.04, 0.97, 0.5)];
+    let w = vec![0.3, 0.5];
+    let mut c = Candidates::default();
+    broad_phase::candidates_within(&particles, &v, pot.topology.facets(), 0.1, &mut c);
+    let mut terms = Vec::new();
+    pot.collect_terms(&particles, &w, &v, &c, &mut terms)
+        .unwrap();
+    let lagged = friction::lag(&pot, &terms, &particles, &v);
+    assert_eq!(lagged.len(), terms.len());
+    let params = FrictionParams::new(0.4, 1e-3, 1e-2).unwrap(); // ε = 1e-5 m
+    let (np, nb) = (particles.len(), v.len());
+    for scale in [3e-6, 1e-3] {
+        // Displacements: sticking (|u| < ε) and sliding (|u| ≫ ε).
+        let dxp: Vec<Vector3<f64>> = (0..np)
+            .map(|i| Vector3::new(1.0, -0.5 + i as f64, 0.3) * scale)
+            .collect();
+        let dxb: Vec<Vector3<f64>> = (0..nb)
+            .map(|i| Vector3::new(0.2 * i as f64, 0.1, -0.3) * scale * 0.1)
+            .collect();
+        let x0 = pack(&dxp, &dxb);
+        let en = |x: &DVector<f64>| {
+            let all: Vec<Vector3<f64>> = x
+                .as_slice()
+                .chunks(3)
+                .map(Vector3::from_column_slice)
+                .collect();
+            friction::energy(&params, &lagged, &all[..np], &all[np..])
+        };
+        let mut d = Vec::new();
+        friction::derivatives(&params, &lagged, &dxp, &dxb, &mut d);
+        let (g, h) = accumulate(&d, np, nb);
+        let step = scale * 1e-4;
+        let gfd = femp_testkit::fd_gradient(en, &x0, step);
+        assert!(
+            (&g - &gfd).amax() <= 1e-5 * g.amax(),
+            "friction gradient (scale {scale})"
+        );
+        let grad = |x: &DVector<f64>| {
+            let all: Vec<Vector3<f64>> = x
+                .as_slice()
+                .chunks(3)
+                .map(Vector3::from_column_slice)
+                .collect();
+            let mut dd = Vec::new();
+            friction::derivatives(&params, &lagged, &all[..np], &all[np..], &mut dd);
+            accumulate(&dd, np, nb).0
+        };
+        let hfd = femp_testkit::fd_jacobian(grad, &x0, step);
+        assert!(
+            (&h - &hfd).amax() <= 1e-4 * h.amax().max(hfd.amax()),
+            "friction Hessian (scale {scale})"
+        );
+        let hmax = h.amax();
+        assert!(h.symmetric_eigen().eigenvalues.min() >= -1e-9 * hmax);
+    }
+    // Sliding a particle over a fixed face: the force on it is −μλ û (Coulomb).
+    let t = lagged.iter().find(|t| t.particle == 0).unwrap();
+    let slide = Vector3::new(0.7, -0.2, 0.0) * 1e-2;
+    let dxp = vec![slide, Vector3::zeros()];
+    let dxb = vec![Vector3::zeros(); nb];
+    let mut d = Vec::new();
+    friction::derivatives(&params, std::slice::from_ref(t), &dxp, &dxb, &mut d);
+    let force = -d[0].grad[0];
+    assert!((force.norm() - params.mu * t.lambda).abs() <= 1e-9 * force.norm());
+    assert!(force.normalize().dot(&slide.normalize()) < -0.999999);
+}
+
+#[test]
+fn friction_2d_sticking_force_is_linear() {
+    let (v, f) = square();
+    let pot = ContactPotential::new(
+        LogBarrier::new(0.05, 1e3).unwrap(),
+        BoundaryTopology::<2>::new(&f, 4).unwrap(),
+    );
+    let particles = vec![Vector2::new(0.3, -1.01)];
+    let mut c = Candidates::default();
+    broad_phase::candidates_within(&particles, &v, pot.topology.facets(), 0.05, &mut c);
+    let mut terms = Vec::new();
+    pot.collect_terms(&particles, &[1.0], &v, &c, &mut terms)
+        .unwrap();
+    let lagged = friction::lag(&pot, &terms, &particles, &v);
+    let params = FrictionParams::new(0.5, 1e-4, 1e-2).unwrap(); // ε = 1e-6
+    let force = |ux: f64| {
+        let mut d = Vec::new();
+        friction::derivatives(
+            &params,
+            &lagged,
+            &[Vector2::new(ux, 0.0)],
+            &[Vector2::zeros(); 4],
+            &mut d,
+        );
+        -d[0].grad[0].x
+    };
+    let lam = lagged[0].lambda;
+    // Small slip: f₁(y) ≈ 2y/ε, so the force grows linearly; beyond ε it saturates at μλ.
+    assert!((force(1e-9) + params.mu * lam * 2e-9 / 1e-6).abs() < 1e-3 * params.mu * lam * 2e-3);
+    assert!((force(1e-3) + params.mu * lam).abs() < 1e-12 * params.mu * lam);
+    assert!((force(-1e-3) - params.mu * lam).abs() < 1e-12 * params.mu * lam);
+}
+
+#[test]
+fn broad_phase_equals_brute_force() {
+    use rand::{RngExt, SeedableRng};
+    let mut rng = rand::rngs::StdRng::seed_from_u64(7);
+    // A wavy closed-ish polyline of 400 edges, 3000 particles around it.
+    let n = 400;
+    let v: Vec<Vector2<f64>> = (0..n)
+        .map(|i| {
+            let t = std::f64::consts::TAU * i as f64 / n as f64;
+            let r = 1.0 + 0.1 * (7.0 * t).sin();
+            Vector2::new(r * t.cos(), r * t.sin())
+        })
+        .collect();
+    let f: Vec<[u32; 3]> = (0..n as u32).map(|i| [i, (i + 1) % n as u32, 0]).collect();
+    let p: Vec<Vector2<f64>> = (0..3000)
+        .map(|_| Vector2::new(rng.random_range(-1.3..1.3), rng.random_range(-1.3..1.3)))
+        .collect();
+    let dist = 0.03;
+    let mut c = Candidates::default();
+    broad_phase::candidates_within(&p, &v, &f, dist, &mut c);
+    let mut pairs = 0;
+    for (q, x) in p.iter().enumerate() {
+        let brute: Vec<u32> = f
+            .iter()
+            .enumerate()
+            .filter(|(_, fa)| {
+                let (a, b) = (v[fa[0] as usize], v[fa[1] as usize]);
+                let lo = a.inf(&b).add_scalar(-dist);
+                let hi = a.sup(&b).add_scalar(dist);
+                (0..2).all(|k| x[k] >= lo[k] && x[k] <= hi[k])
+            })
+            .map(|(i, _)| i as u32)
+            .collect();
+        assert_eq!(c.of(q), &brute[..], "particle {q}");
+        pairs += brute.len();
+    }
+    assert!(
+        pairs > 100,
+        "only {pairs} pairs: the test would prove nothing"
+    );
+    // Swept: moving every particle by a large step finds a superset of both end states.
+    let p1: Vec<Vector2<f64>> = p.iter().map(|x| x + Vector2::new(0.2, -0.1)).collect();
+    let mut s = Candidates::default();
+    broad_phase::candidates_swept(&p, &p1, &v, &v, &f, dist, &mut s);
+    let mut end = Candidates::default();
+    broad_phase::candidates_within(&p1, &v, &f, dist, &mut end);
+    for q in 0..p.len() {
+        for fi in c.of(q).iter().chain(end.of(q)) {
+            assert!(
+                s.of(q).contains(fi),
+                "swept candidates of {q} miss facet {fi}"
+            );
+        }
+    }
+}
+
+#[test]
+fn batch_ccd_step_stops_before_the_floor() {
+    // Particles falling onto a floor y = 0 from y = 0.5 by 2.0: first contact at α = 0.25.
+    let v = vec![Vector2::new(-10.0, 0.0), Vector2::new(10.0, 0.0)];
+    let f = vec![[0u32, 1, 0]];
+    let xp = vec![Vector2::new(0.3, 0.5), Vector2::new(-2.0, 1.0)];
+    let dxp = vec![Vector2::new(0.1, -2.0), Vector2::new(0.0, -2.0)];
+    let x1: Vec<_> = xp.iter().zip(&dxp).map(|(a, b)| a + b).collect();
+    let mut c = Candidates::default();
+    broad_phase::candidates_swept(&xp, &x1, &v, &v, &f, 0.0, &mut c);
+    let zero = vec![Vector2::zeros(); 2];
+    let (alpha, pair) = ccd::max_step(&xp, &dxp, &v, &zero, &f, &c, &CcdOptions::default());
+    // Stops within the CCD's minimum separation (10⁻⁶ of the query scale, 20 m here) of contact.
+    assert!(alpha <= 0.25 && alpha > 0.25 - 2e-5, "α = {alpha}");
+    assert_eq!(pair, Some((0, 0)));
+    // Nothing in the way: the full step.
+    let up: Vec<_> = dxp.iter().map(|d| -d).collect();
+    let (alpha, pair) = ccd::max_step(&xp, &up, &v, &zero, &f, &c, &CcdOptions::default());
+    assert_eq!((alpha, pair), (1.0, None));
+}
