@@ -1,0 +1,61 @@
+//! Sparse Cholesky on elasticity-like SPD matrices (2D: 2 DOFs/node, 3D: 3 DOFs/node,
+//! 10⁴–4·10⁵ unknowns): symbolic analysis (AMD vs. METIS nested dissection), numeric
+//! factorisation (1 and 2 threads) and solve, timed separately. Prints the factor fill once.
+//!
+//! Run: `cargo bench -p femp-solver --bench cholesky`. The same matrices through CHOLMOD:
+//! `cargo run --release -p femp-solver --example write_matrices -- DIR` then
+//! `fixtures/cholmod/run.sh DIR`.
+
+use criterion::{BenchmarkId, Criterion, criterion_group, criterion_main};
+use femp_solver::{Cholesky, Ordering, Threads};
+
+#[path = "common/matrices.rs"]
+mod matrices;
+
+fn benches(c: &mut Criterion) {
+    for case in matrices::all() {
+        let mut group = c.benchmark_group(format!("cholesky_{}", case.name));
+        group.sample_size(10);
+        for (oname, ord) in [
+            ("amd", Ordering::Amd),
+            ("nd", Ordering::NestedDissection { block: case.block }),
+        ] {
+            let mut probe = Cholesky::new(ord, Threads::Seq);
+            probe.analyze(&case.csc).unwrap();
+            eprintln!(
+                "{} {oname}: n = {}, nnz(A upper) = {}, nnz(L) = {}",
+                case.name,
+                case.csc.n(),
+                case.csc.nnz(),
+                probe.stats.factor_nnz
+            );
+            group.bench_function(BenchmarkId::new("symbolic", oname), |b| {
+                b.iter(|| {
+                    let mut ch = Cholesky::new(ord, Threads::Seq);
+                    ch.analyze(&case.csc).unwrap();
+                })
+            });
+            for (tname, threads) in [("1t", Threads::Seq), ("2t", Threads::Rayon)] {
+                let mut ch = Cholesky::new(ord, threads);
+                ch.analyze(&case.csc).unwrap();
+                let mut a = case.csc.clone();
+                group.bench_function(BenchmarkId::new(format!("numeric_{tname}"), oname), |b| {
+                    b.iter(|| ch.factorize(&mut a).unwrap())
+                });
+                if tname == "1t" {
+                    let mut rhs = vec![1.0; case.csc.n()];
+                    group.bench_function(BenchmarkId::new("solve_1t", oname), |b| {
+                        b.iter(|| {
+                            rhs.iter_mut().for_each(|v| *v = 1.0);
+                            ch.solve_in_place(&mut rhs)
+                        })
+                    });
+                }
+            }
+        }
+        group.finish();
+    }
+}
+
+criterion_group!(cholesky, benches);
+criterion_main!(cholesky);

@@ -1,0 +1,92 @@
+//! Benchmark matrices with the structure of femp's Hessians: the neo-Hookean stiffness of a
+//! structured triangle (2D, 2 DOFs per node) or tetrahedron (3D, 3 DOFs per node) mesh, plus a
+//! lumped mass diagonal — symmetric positive definite, elasticity-like stencils.
+#![allow(dead_code, missing_docs)]
+
+use femp_fem::mesh::generate;
+use femp_fem::{ElasticBody, NeoHookean, Triplet};
+use femp_solver::{Triplets, UpperCsc};
+use nalgebra::{Vector2, Vector3};
+
+/// An SPD matrix (upper CSC) and its DOFs per node.
+pub struct Case {
+    pub name: String,
+    pub csc: UpperCsc,
+    pub block: usize,
+}
+
+fn finish(name: String, trip: &[Triplet], n: usize, mass: f64, block: usize) -> Case {
+    let mut t = Triplets::default();
+    t.reserve(trip.len() + n);
+    for e in trip {
+        t.push(e.row, e.col, e.value);
+    }
+    for d in 0..n {
+        t.push(d, d, mass);
+    }
+    let free: Vec<u32> = (0..n as u32).collect();
+    let mut csc = UpperCsc::default();
+    csc.assemble(&t, &free, n);
+    Case { name, csc, block }
+}
+
+/// 2D: an `m × m` node grid (2 m² unknowns).
+pub fn grid2(m: usize) -> Case {
+    let mesh = generate::rectangle(Vector2::zeros(), Vector2::new(1.0, 1.0), m - 1, m - 1).unwrap();
+    let body = ElasticBody::new(&mesh, NeoHookean::from_young_poisson(1e6, 0.3).unwrap()).unwrap();
+    let x: Vec<_> = mesh.vertices().iter().map(|v| v * 1.01).collect();
+    let mut trip = Vec::new();
+    body.hessian_triplets(&x, 1e-4, 0, &mut trip).unwrap();
+    finish(
+        format!("2d_{}k", 2 * m * m / 1000),
+        &trip,
+        2 * m * m,
+        1.0 / (m * m) as f64,
+        2,
+    )
+}
+
+/// 3D: an `m³` node grid (3 m³ unknowns).
+pub fn grid3(m: usize) -> Case {
+    let mesh = generate::cuboid(
+        Vector3::zeros(),
+        Vector3::new(1.0, 1.0, 1.0),
+        m - 1,
+        m - 1,
+        m - 1,
+    )
+    .unwrap();
+    let body = ElasticBody::new(&mesh, NeoHookean::from_young_poisson(1e6, 0.3).unwrap()).unwrap();
+    let x: Vec<_> = mesh.vertices().iter().map(|v| v * 1.01).collect();
+    let mut trip = Vec::new();
+    body.hessian_triplets(&x, 1e-4, 0, &mut trip).unwrap();
+    finish(
+        format!("3d_{}k", 3 * m * m * m / 1000),
+        &trip,
+        3 * m * m * m,
+        1.0 / (m * m * m) as f64,
+        3,
+    )
+}
+
+/// The benchmark set: about 10⁴, 10⁵ and 4·10⁵ unknowns in 2D; 10⁴ and 10⁵ in 3D (the 3D
+/// 4·10⁵ case is left out: its factor needs several GB and minutes per factorisation here).
+pub fn all() -> Vec<Case> {
+    vec![grid2(71), grid2(224), grid2(447), grid3(15), grid3(32)]
+}
+
+/// Write the upper triangle in Matrix Market coordinate form (for CHOLMOD).
+pub fn write_mtx(case: &Case, path: &std::path::Path) -> std::io::Result<()> {
+    use std::io::Write;
+    let mut f = std::io::BufWriter::new(std::fs::File::create(path)?);
+    let a = &case.csc;
+    writeln!(f, "%%MatrixMarket matrix coordinate real symmetric")?;
+    writeln!(f, "{} {} {}", a.n(), a.n(), a.nnz())?;
+    for c in 0..a.n() {
+        for k in a.col_ptr()[c]..a.col_ptr()[c + 1] {
+            // Symmetric Matrix Market stores the lower triangle: (row ≥ col).
+            writeln!(f, "{} {} {:.17e}", c + 1, a.row_idx()[k] + 1, a.values()[k])?;
+        }
+    }
+    f.flush()
+}

@@ -1,0 +1,357 @@
+//! Sparse Cholesky through faer's low-level API, with the symbolic factorisation reused while
+//! the sparsity pattern is unchanged and the numeric values and workspace reused always.
+//!
+//! * [`Ordering::Amd`] — faer's approximate minimum degree (its default);
+//! * [`Ordering::NestedDissection`] — METIS `NodeND` (vendored METIS through `metis-sys`) on the
+//!   graph of the matrix, optionally compressed to nodes of `block` DOFs (2 or 3 for vector
+//!   fields), which is both faster to order and gives less fill on elasticity-like matrices;
+//! * [`Ordering::Auto`] — nested dissection for large matrices, AMD for small ones.
+//!
+//! If the numeric factorisation meets a non-positive pivot (a PSD Hessian that is singular up to
+//! round-off), the diagonal is shifted by `δ · max|diag|` and the factorisation retried, with δ
+//! growing tenfold from 1e-12; every retry is counted.
+
+use std::time::Instant;
+
+use faer::dyn_stack::{MemBuffer, MemStack};
+use faer::linalg::cholesky::llt::factor::LltRegularization;
+use faer::sparse::linalg::cholesky::{
+    CholeskySymbolicParams, SymbolicCholesky, SymmetricOrdering, factorize_symbolic_cholesky,
+};
+use faer::sparse::{SparseColMatRef, SymbolicSparseColMatRef};
+use faer::{Conj, MatMut, Par, Side};
+
+use crate::UpperCsc;
+
+/// Fill-reducing ordering.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+pub enum Ordering {
+    /// faer's AMD.
+    Amd,
+    /// METIS nested dissection on the graph of nodes of `block` DOFs.
+    NestedDissection {
+        /// DOFs per node (1, 2 or 3); DOF `k` belongs to node `k / block` of the *original*
+        /// numbering.
+        block: usize,
+    },
+    /// Nested dissection (per DOF) for matrices with more than 20 000 unknowns and more than 12
+    /// stored entries per column (3D-like), else AMD: measured, AMD is as good or better on 2D
+    /// elasticity matrices and twice worse in fill and time on 3D ones.
+    #[default]
+    Auto,
+}
+
+/// Parallelism of the numeric factorisation and solve.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+pub enum Threads {
+    /// Single-threaded.
+    Seq,
+    /// rayon, with faer's choice of split.
+    Rayon,
+    /// Rayon when the factor is large and dense enough to profit: measured (see
+    /// `docs/performance.md`), 2 threads were slower than 1 on every 2D matrix and on small 3D
+    /// ones, 1.4× faster on the 3D matrix with 10⁵ unknowns. Rule: `nnz(L) > 2·10⁷` and
+    /// `nnz(L)/n > 300`.
+    #[default]
+    Auto,
+}
+
+/// Failure of the linear solve.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum LinearError {
+    /// The symbolic analysis failed (out of memory, index overflow).
+    #[error("symbolic Cholesky analysis failed: {0}")]
+    Symbolic(String),
+    /// The matrix stayed indefinite after the allowed diagonal shifts.
+    #[error("Cholesky factorisation failed after {shifts} diagonal shifts (last δ = {delta:e})")]
+    NotPositiveDefinite {
+        /// Shifts tried.
+        shifts: usize,
+        /// Last relative shift.
+        delta: f64,
+    },
+    /// METIS failed.
+    #[error("METIS nested dissection failed with status {0}")]
+    Metis(i32),
+}
+
+/// Times and counters of the linear algebra, accumulated.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct LinearStats {
+    /// Symbolic analyses (pattern changes).
+    pub symbolic_count: usize,
+    /// Numeric factorisations (including retries).
+    pub numeric_count: usize,
+    /// Diagonal shifts applied.
+    pub regularizations: usize,
+    /// Seconds in ordering + symbolic analysis.
+    pub symbolic_s: f64,
+    /// Seconds in numeric factorisation.
+    pub numeric_s: f64,
+    /// Seconds in triangular solves.
+    pub solve_s: f64,
+    /// Non-zeros of the last factor.
+    pub factor_nnz: usize,
+}
+
+/// A reusable sparse Cholesky solver.
+pub struct Cholesky {
+    ordering: Ordering,
+    threads: Threads,
+    symbolic: Option<SymbolicCholesky<usize>>,
+    l_values: Vec<f64>,
+    buffer: MemBuffer,
+    /// Original DOF of each free DOF (for node compression in nested dissection).
+    dof_of: Vec<usize>,
+    /// Statistics.
+    pub stats: LinearStats,
+}
+
+impl Cholesky {
+    /// A solver with the given ordering and threading.
+    pub fn new(ordering: Ordering, threads: Threads) -> Self {
+        Self {
+            ordering,
+            threads,
+            symbolic: None,
+            l_values: Vec::new(),
+            buffer: MemBuffer::new(faer::dyn_stack::StackReq::EMPTY),
+            dof_of: Vec::new(),
+            stats: LinearStats::default(),
+        }
+    }
+
+    /// Tell the solver which original DOF each row is (used to group DOFs into nodes for
+    /// nested dissection). Defaults to the identity.
+    pub fn set_dof_map(&mut self, dof_of: &[usize]) {
+        self.dof_of.clear();
+        self.dof_of.extend_from_slice(dof_of);
+    }
+
+    fn par(&self, factor_nnz: usize, n: usize) -> Par {
+        match self.threads {
+            Threads::Seq => Par::Seq,
+            Threads::Rayon => Par::rayon(0),
+            Threads::Auto => {
+                let n = n.max(1);
+                if factor_nnz > 20_000_000
+                    && factor_nnz / n > 300
+                    && rayon::current_num_threads() > 1
+                {
+                    Par::rayon(0)
+                } else {
+                    Par::Seq
+                }
+            }
+        }
+    }
+
+    /// Forget the symbolic analysis (the next factorisation re-analyses).
+    pub fn reset(&mut self) {
+        self.symbolic = None;
+    }
+
+    /// Analyse `a`'s pattern (ordering + symbolic factorisation).
+    pub fn analyze(&mut self, a: &UpperCsc) -> Result<(), LinearError> {
+        let t = Instant::now();
+        let n = a.n;
+        let sym = SymbolicSparseColMatRef::new_checked(n, n, &a.col_ptr, None, &a.row_idx);
+        let use_nd = match self.ordering {
+            Ordering::Amd => None,
+            Ordering::NestedDissection { block } => Some(block),
+            Ordering::Auto => (n > 20_000 && a.nnz() > 12 * n).then_some(1),
+        };
+        let result = match use_nd {
+            Some(block) => {
+                let (fwd, inv) = self.nested_dissection(a, block)?;
+                let perm = faer::perm::PermRef::new_checked(&fwd, &inv, n);
+                factorize_symbolic_cholesky(
+                    sym,
+                    Side::Upper,
+                    SymmetricOrdering::Custom(perm),
+                    CholeskySymbolicParams::default(),
+                )
+            }
+            None => factorize_symbolic_cholesky(
+                sym,
+                Side::Upper,
+                SymmetricOrdering::Amd,
+                CholeskySymbolicParams::default(),
+            ),
+        };
+        let symbolic = result.map_err(|e| LinearError::Symbolic(format!("{e:?}")))?;
+        self.l_values.resize(symbolic.len_val(), 0.0);
+        self.stats.factor_nnz = symbolic.len_val();
+        let par = self.par(symbolic.len_val(), n);
+        let req = symbolic
+            .factorize_numeric_llt_scratch::<f64>(par, Default::default())
+            .or(symbolic.solve_in_place_scratch::<f64>(1, par));
+        self.buffer = MemBuffer::new(req);
+        self.symbolic = Some(symbolic);
+        self.stats.symbolic_count += 1;
+        self.stats.symbolic_s += t.elapsed().as_secs_f64();
+        Ok(())
+    }
+
+    /// Whether a symbolic analysis is available.
+    pub fn is_analyzed(&self) -> bool {
+        self.symbolic.is_some()
+    }
+
+    /// Numeric factorisation of `a` (analysed before), shifting the diagonal on failure.
+    pub fn factorize(&mut self, a: &mut UpperCsc) -> Result<(), LinearError> {
+        let t = Instant::now();
+        let Some(symbolic) = &self.symbolic else {
+            return Err(LinearError::Symbolic(
+                "factorize called before analyze".into(),
+            ));
+        };
+        let n = a.n;
+        let max_diag = (0..n)
+            .filter_map(|j| a.diagonal_index(j))
+            .map(|k| a.values[k].abs())
+            .fold(0.0f64, f64::max)
+            .max(f64::MIN_POSITIVE);
+        let par = self.par(symbolic.len_val(), n);
+        let mut delta = 0.0;
+        let mut shifts = 0;
+        loop {
+            let mat = SparseColMatRef::new(
+                SymbolicSparseColMatRef::new_checked(n, n, &a.col_ptr, None, &a.row_idx),
+                &a.values,
+            );
+            self.stats.numeric_count += 1;
+            let ok = symbolic
+                .factorize_numeric_llt(
+                    &mut self.l_values,
+                    mat,
+                    Side::Upper,
+                    LltRegularization::default(),
+                    par,
+                    MemStack::new(&mut self.buffer),
+                    Default::default(),
+                )
+                .is_ok();
+            if ok {
+                break;
+            }
+            if shifts >= 12 {
+                self.stats.numeric_s += t.elapsed().as_secs_f64();
+                return Err(LinearError::NotPositiveDefinite { shifts, delta });
+            }
+            let new_delta = if delta == 0.0 { 1e-12 } else { delta * 10.0 };
+            for j in 0..n {
+                if let Some(k) = a.diagonal_index(j) {
+                    a.values[k] += (new_delta - delta) * max_diag;
+                }
+            }
+            delta = new_delta;
+            shifts += 1;
+            self.stats.regularizations += 1;
+        }
+        self.stats.numeric_s += t.elapsed().as_secs_f64();
+        Ok(())
+    }
+
+    /// Solve `A x = rhs` in place with the last factorisation.
+    pub fn solve_in_place(&mut self, rhs: &mut [f64]) {
+        let t = Instant::now();
+        let symbolic = self.symbolic.as_ref().expect("solve before factorize");
+        let par = self.par(symbolic.len_val(), symbolic.nrows());
+        let llt =
+            faer::sparse::linalg::cholesky::LltRef::<'_, usize, f64>::new(symbolic, &self.l_values);
+        let n = rhs.len();
+        let rhs_mat = MatMut::from_column_major_slice_mut(rhs, n, 1);
+        llt.solve_in_place_with_conj(Conj::No, rhs_mat, par, MemStack::new(&mut self.buffer));
+        self.stats.solve_s += t.elapsed().as_secs_f64();
+    }
+
+    /// METIS NodeND on the (node-compressed) graph of `a`; returns (forward, inverse)
+    /// permutations of the rows (`forward[new] = old`).
+    fn nested_dissection(
+        &self,
+        a: &UpperCsc,
+        block: usize,
+    ) -> Result<(Vec<usize>, Vec<usize>), LinearError> {
+        let n = a.n;
+        let block = block.max(1);
+        let dof = |k: usize| {
+            if self.dof_of.len() == n {
+                self.dof_of[k]
+            } else {
+                k
+            }
+        };
+        // Node of each row, renumbered compactly.
+        let mut node_of = vec![0usize; n];
+        let mut node_id = std::collections::HashMap::new();
+        let mut members: Vec<Vec<usize>> = Vec::new();
+        for k in 0..n {
+            let key = dof(k) / block;
+            let id = *node_id.entry(key).or_insert_with(|| {
+                members.push(Vec::new());
+                members.len() - 1
+            });
+            node_of[k] = id;
+            members[id].push(k);
+        }
+        let nn = members.len();
+        // Symmetric node adjacency from the upper pattern.
+        let mut adj: Vec<Vec<i32>> = vec![Vec::new(); nn];
+        for c in 0..n {
+            for &r in &a.row_idx[a.col_ptr[c]..a.col_ptr[c + 1]] {
+                let (u, v) = (node_of[r], node_of[c]);
+                if u != v {
+                    adj[u].push(v as i32);
+                    adj[v].push(u as i32);
+                }
+            }
+        }
+        let mut xadj = Vec::with_capacity(nn + 1);
+        let mut adjncy = Vec::new();
+        xadj.push(0i32);
+        for l in adj.iter_mut() {
+            l.sort_unstable();
+            l.dedup();
+            adjncy.extend_from_slice(l);
+            xadj.push(adjncy.len() as i32);
+        }
+        let mut perm = vec![0i32; nn];
+        let mut iperm = vec![0i32; nn];
+        if nn > 1 && !adjncy.is_empty() {
+            let mut nv = nn as i32;
+            let mut options = [0i32; metis_sys::METIS_NOPTIONS as usize];
+            // SAFETY: plain FFI calls with correctly sized, initialised buffers: `options` has
+            // METIS_NOPTIONS entries, `xadj` nn + 1, `adjncy` xadj[nn], `perm`/`iperm` nn.
+            let status = unsafe {
+                metis_sys::METIS_SetDefaultOptions(options.as_mut_ptr());
+                metis_sys::METIS_NodeND(
+                    &mut nv,
+                    xadj.as_mut_ptr(),
+                    adjncy.as_mut_ptr(),
+                    std::ptr::null_mut(),
+                    options.as_mut_ptr(),
+                    perm.as_mut_ptr(),
+                    iperm.as_mut_ptr(),
+                )
+            };
+            if status != metis_sys::rstatus_et_METIS_OK {
+                return Err(LinearError::Metis(status));
+            }
+        } else {
+            for (i, p) in perm.iter_mut().enumerate() {
+                *p = i as i32;
+            }
+        }
+        // METIS: perm[new] = old node. Expand nodes to their rows.
+        let mut fwd = Vec::with_capacity(n);
+        for &node in &perm {
+            fwd.extend_from_slice(&members[node as usize]);
+        }
+        let mut inv = vec![0usize; n];
+        for (new, &old) in fwd.iter().enumerate() {
+            inv[old] = new;
+        }
+        Ok((fwd, inv))
+    }
+}

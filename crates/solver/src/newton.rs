@@ -1,0 +1,364 @@
+//! Projected Newton with a feasibility-filtered backtracking line search (BFEMP Algorithm 2).
+//!
+//! Each iteration: `begin_iteration` (the objective updates its active sets), gradient `g`,
+//! PSD Hessian `H` (triplets → CSC, symbolic factorisation reused while the pattern holds),
+//! `p = −H⁻¹g` on the free DOFs (`p = 0` on fixed ones), the largest feasible step `α_max`
+//! from the objective (CCD, det F), then `α = min(1, 0.9 α_max)` halved until
+//! `E(x + αp) ≤ E(x) + c α gᵀp` (Armijo, `c = 1e-4` by default; non-finite energies count as
+//! failures). The solve stops when `‖p‖_∞ / Δt < ε_d` (BFEMP §5: the Newton increment in
+//! velocity units).
+//!
+//! Failures are errors carrying the statistics so far: a line search that cannot decrease the
+//! energy with `α` above a floor, the iteration limit, a non-finite energy or gradient, an
+//! unfactorisable Hessian.
+
+use std::time::Instant;
+
+use crate::linear::{Cholesky, LinearError, Ordering, Threads};
+use crate::{SolveError, Triplets, UpperCsc};
+
+/// What limited a step: the objective's answer to "how far can we go along `p`".
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum StepLimit {
+    /// Continuous collision detection.
+    Ccd,
+    /// An element or particle would invert (det F).
+    DetF,
+    /// Something else the objective knows about.
+    Other,
+}
+
+/// The largest feasible step along a direction: every `x + s p` with `0 ≤ s < alpha` is
+/// feasible. `limit` is `None` when nothing limits the step within `alpha = 1`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct StepBound {
+    /// Largest feasible fraction of the step, in (0, 1].
+    pub alpha: f64,
+    /// What limited it.
+    pub limit: Option<StepLimit>,
+}
+
+impl StepBound {
+    /// No limit.
+    pub const UNLIMITED: StepBound = StepBound {
+        alpha: 1.0,
+        limit: None,
+    };
+}
+
+/// An objective a physical model implements. `x` has one entry per DOF (fixed ones included).
+pub trait Objective {
+    /// Number of DOFs.
+    fn num_dofs(&self) -> usize;
+    /// Called at the start of every Newton iteration with the current iterate (e.g. to update
+    /// broad-phase candidates for the step ahead). Default: nothing.
+    fn begin_iteration(&mut self, _x: &[f64]) {}
+    /// `E(x)`; `+∞` or NaN for infeasible points (they make the line search backtrack).
+    fn energy(&mut self, x: &[f64]) -> f64;
+    /// `∇E(x)` into `g` (overwrite).
+    fn gradient(&mut self, x: &[f64], g: &mut [f64]);
+    /// A positive semi-definite approximation of `∇²E(x)` as **full symmetric** triplets
+    /// (both triangles), appended to `h` (cleared by the caller).
+    fn hessian(&mut self, x: &[f64], h: &mut Triplets);
+    /// The largest feasible step along `p` (CCD, inversion); default: unlimited.
+    fn max_step(&mut self, _x: &[f64], _p: &[f64]) -> StepBound {
+        StepBound::UNLIMITED
+    }
+}
+
+/// Parameters of a solve.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct NewtonParams {
+    /// Convergence tolerance ε_d on `‖p‖_∞ / dt` (m/s with `dt` the time step).
+    pub tolerance: f64,
+    /// The time step that scales `p` into a velocity (1 for a plain minimisation).
+    pub dt: f64,
+    /// Iteration limit.
+    pub max_iterations: usize,
+    /// Armijo constant `c` in `E(x + αp) ≤ E(x) + c α gᵀp`.
+    pub armijo: f64,
+    /// Fraction of the largest feasible step the line search starts from (0.9 in the paper).
+    pub feasible_fraction: f64,
+    /// The line search gives up when `α‖p‖_∞` falls below this (absolute, DOF units).
+    pub min_step: f64,
+    /// Fill-reducing ordering.
+    pub ordering: Ordering,
+    /// Threading of the factorisation.
+    pub threads: Threads,
+}
+
+impl Default for NewtonParams {
+    fn default() -> Self {
+        Self {
+            tolerance: 1e-6,
+            dt: 1.0,
+            max_iterations: 200,
+            armijo: 1e-4,
+            feasible_fraction: 0.9,
+            min_step: 1e-14,
+            ordering: Ordering::Auto,
+            threads: Threads::Auto,
+        }
+    }
+}
+
+/// Statistics of one solve.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct SolveStats {
+    /// Newton iterations (factorisations of distinct Hessians).
+    pub iterations: usize,
+    /// Line-search halvings, in total.
+    pub backtracks: usize,
+    /// Iterations whose first trial step was limited by each kind of bound.
+    pub limited_by_ccd: usize,
+    /// … by det F.
+    pub limited_by_det_f: usize,
+    /// … by something else.
+    pub limited_by_other: usize,
+    /// `‖p‖_∞ / dt` of the last iteration.
+    pub final_residual: f64,
+    /// Energy at the returned point.
+    pub final_energy: f64,
+    /// Diagonal shifts applied to make a Hessian factorisable.
+    pub regularizations: usize,
+    /// Symbolic analyses (sparsity pattern changes).
+    pub symbolic_analyses: usize,
+    /// Seconds assembling gradient and Hessian (objective calls and CSC build).
+    pub assembly_s: f64,
+    /// Seconds in ordering and symbolic factorisation.
+    pub symbolic_s: f64,
+    /// Seconds in numeric factorisation.
+    pub numeric_s: f64,
+    /// Seconds in triangular solves.
+    pub solve_s: f64,
+    /// Seconds in the line search (feasible-step bound and energy evaluations).
+    pub line_search_s: f64,
+}
+
+/// A projected-Newton solver. Keep it across solves: the symbolic factorisation and all
+/// buffers are reused while the Hessian's pattern is unchanged.
+pub struct Newton {
+    chol: Cholesky,
+    triplets: Triplets,
+    csc: UpperCsc,
+    ordering: Ordering,
+    threads: Threads,
+    free: Vec<u32>,
+    free_dofs: Vec<usize>,
+    g: Vec<f64>,
+    p: Vec<f64>,
+    rhs: Vec<f64>,
+    trial: Vec<f64>,
+}
+
+impl Default for Newton {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl Newton {
+    /// A solver with empty buffers.
+    pub fn new() -> Self {
+        Self {
+            chol: Cholesky::new(Ordering::Auto, Threads::Auto),
+            triplets: Triplets::default(),
+            csc: UpperCsc::default(),
+            ordering: Ordering::Auto,
+            threads: Threads::Auto,
+            free: Vec::new(),
+            free_dofs: Vec::new(),
+            g: Vec::new(),
+            p: Vec::new(),
+            rhs: Vec::new(),
+            trial: Vec::new(),
+        }
+    }
+
+    /// Minimise `obj` from `x` (in place). `fixed[dof]` marks Dirichlet DOFs: they keep the
+    /// values they have in `x` (the caller sets prescribed values before calling).
+    pub fn minimize(
+        &mut self,
+        obj: &mut impl Objective,
+        x: &mut [f64],
+        fixed: &[bool],
+        params: &NewtonParams,
+    ) -> Result<SolveStats, SolveError> {
+        let n = obj.num_dofs();
+        let mut stats = SolveStats::default();
+        if x.len() != n || fixed.len() != n {
+            return Err(SolveError::BadProblem(format!(
+                "{} DOFs but x has {} entries and fixed has {}",
+                n,
+                x.len(),
+                fixed.len()
+            )));
+        }
+        if !(params.dt > 0.0 && params.tolerance > 0.0) {
+            return Err(SolveError::BadProblem(format!(
+                "dt = {} and tolerance = {} must be positive",
+                params.dt, params.tolerance
+            )));
+        }
+        if params.ordering != self.ordering || params.threads != self.threads {
+            self.chol = Cholesky::new(params.ordering, params.threads);
+            self.ordering = params.ordering;
+            self.threads = params.threads;
+        }
+        // Free-DOF numbering (rebuilt per solve; the symbolic factorisation survives if the
+        // pattern of the free part is unchanged).
+        self.free.clear();
+        self.free_dofs.clear();
+        for (d, &f) in fixed.iter().enumerate() {
+            if f {
+                self.free.push(u32::MAX);
+            } else {
+                self.free.push(self.free_dofs.len() as u32);
+                self.free_dofs.push(d);
+            }
+        }
+        self.chol.set_dof_map(&self.free_dofs);
+        let nf = self.free_dofs.len();
+        self.g.resize(n, 0.0);
+        self.p.resize(n, 0.0);
+        self.rhs.resize(nf, 0.0);
+        self.trial.resize(n, 0.0);
+        let lin0 = self.chol.stats;
+
+        let mut e = obj.energy(x);
+        if !e.is_finite() {
+            return Err(SolveError::NonFinite {
+                what: "energy at the initial guess",
+                stats: Box::new(stats),
+            });
+        }
+        let finish = |stats: &mut SolveStats, chol: &Cholesky, e: f64| {
+            stats.final_energy = e;
+            stats.symbolic_s = chol.stats.symbolic_s - lin0.symbolic_s;
+            stats.numeric_s = chol.stats.numeric_s - lin0.numeric_s;
+            stats.solve_s = chol.stats.solve_s - lin0.solve_s;
+            stats.regularizations = chol.stats.regularizations - lin0.regularizations;
+            stats.symbolic_analyses = chol.stats.symbolic_count - lin0.symbolic_count;
+        };
+        if nf == 0 {
+            finish(&mut stats, &self.chol, e);
+            return Ok(stats);
+        }
+        for _ in 0..params.max_iterations {
+            stats.iterations += 1;
+            let t = Instant::now();
+            obj.begin_iteration(x);
+            self.g.iter_mut().for_each(|v| *v = 0.0);
+            obj.gradient(x, &mut self.g);
+            if let Some(bad) = self.g.iter().position(|v| !v.is_finite()) {
+                finish(&mut stats, &self.chol, e);
+                let _ = bad;
+                return Err(SolveError::NonFinite {
+                    what: "gradient",
+                    stats: Box::new(stats),
+                });
+            }
+            self.triplets.clear();
+            obj.hessian(x, &mut self.triplets);
+            let changed = self.csc.assemble(&self.triplets, &self.free, nf);
+            stats.assembly_s += t.elapsed().as_secs_f64();
+            if changed || !self.chol.is_analyzed() {
+                self.chol
+                    .analyze(&self.csc)
+                    .map_err(|err| self.linear_error(err, &mut stats, e))?;
+            }
+            if let Err(err) = self.chol.factorize(&mut self.csc) {
+                finish(&mut stats, &self.chol, e);
+                return Err(SolveError::Linear {
+                    source: err,
+                    stats: Box::new(stats),
+                });
+            }
+            for (k, &d) in self.free_dofs.iter().enumerate() {
+                self.rhs[k] = -self.g[d];
+            }
+            self.chol.solve_in_place(&mut self.rhs);
+            self.p.iter_mut().for_each(|v| *v = 0.0);
+            let mut pmax = 0.0f64;
+            let mut gp = 0.0;
+            for (k, &d) in self.free_dofs.iter().enumerate() {
+                self.p[d] = self.rhs[k];
+                pmax = pmax.max(self.rhs[k].abs());
+                gp += self.g[d] * self.rhs[k];
+            }
+            if !pmax.is_finite() {
+                finish(&mut stats, &self.chol, e);
+                return Err(SolveError::NonFinite {
+                    what: "Newton direction",
+                    stats: Box::new(stats),
+                });
+            }
+            stats.final_residual = pmax / params.dt;
+            let converged = stats.final_residual < params.tolerance;
+
+            // Line search.
+            let t = Instant::now();
+            let bound = obj.max_step(x, &self.p);
+            let mut alpha = if bound.limit.is_some() || bound.alpha < 1.0 {
+                match bound.limit {
+                    Some(StepLimit::Ccd) => stats.limited_by_ccd += 1,
+                    Some(StepLimit::DetF) => stats.limited_by_det_f += 1,
+                    _ => stats.limited_by_other += 1,
+                }
+                (params.feasible_fraction * bound.alpha).min(1.0)
+            } else {
+                1.0
+            };
+            let mut accepted = None;
+            while alpha * pmax >= params.min_step {
+                for d in 0..n {
+                    self.trial[d] = x[d] + alpha * self.p[d];
+                }
+                let et = obj.energy(&self.trial);
+                if et.is_finite() && et <= e + params.armijo * alpha * gp {
+                    accepted = Some(et);
+                    break;
+                }
+                alpha *= 0.5;
+                stats.backtracks += 1;
+            }
+            stats.line_search_s += t.elapsed().as_secs_f64();
+            match accepted {
+                Some(et) => {
+                    x.copy_from_slice(&self.trial);
+                    e = et;
+                }
+                None if converged => {
+                    // Already at the tolerance: the last increment is below round-off.
+                }
+                None => {
+                    finish(&mut stats, &self.chol, e);
+                    return Err(SolveError::LineSearchStalled {
+                        stats: Box::new(stats),
+                    });
+                }
+            }
+            if converged {
+                finish(&mut stats, &self.chol, e);
+                return Ok(stats);
+            }
+        }
+        finish(&mut stats, &self.chol, e);
+        Err(SolveError::IterationLimit {
+            stats: Box::new(stats),
+        })
+    }
+
+    fn linear_error(&self, err: LinearError, stats: &mut SolveStats, e: f64) -> SolveError {
+        stats.final_energy = e;
+        SolveError::Linear {
+            source: err,
+            stats: Box::new(stats.clone()),
+        }
+    }
+
+    /// Statistics of the linear algebra since this solver was created.
+    pub fn linear_stats(&self) -> crate::linear::LinearStats {
+        self.chol.stats
+    }
+}

@@ -1,0 +1,292 @@
+//! Hessian assembly: triplets in, the upper triangle of the free-DOF matrix in compressed
+//! sparse column form out, with the sparsity pattern compared to the previous one so the
+//! symbolic factorisation can be reused.
+//!
+//! Convention: objectives push the **full** symmetric Hessian (both triangles, duplicates summed),
+//! which is what per-element block assembly produces naturally; entries below the diagonal are
+//! dropped here, entries touching a fixed DOF are dropped too (Dirichlet DOFs are not unknowns).
+//!
+//! Assembly is a counting sort by column (linear in the number of triplets) followed by a small
+//! sort-and-merge within each column, parallel over columns; no comparison sort over all
+//! triplets.
+
+use rayon::prelude::*;
+
+/// A growing list of `(row, col, value)` entries of a symmetric matrix (both triangles).
+#[derive(Clone, Debug, Default)]
+pub struct Triplets {
+    pub(crate) rows: Vec<u32>,
+    pub(crate) cols: Vec<u32>,
+    pub(crate) vals: Vec<f64>,
+}
+
+impl Triplets {
+    /// Remove all entries, keeping the memory.
+    pub fn clear(&mut self) {
+        self.rows.clear();
+        self.cols.clear();
+        self.vals.clear();
+    }
+
+    /// Add `value` at `(row, col)`.
+    #[inline]
+    pub fn push(&mut self, row: usize, col: usize, value: f64) {
+        self.rows.push(row as u32);
+        self.cols.push(col as u32);
+        self.vals.push(value);
+    }
+
+    /// Add many entries at once.
+    pub fn extend(&mut self, entries: impl IntoIterator<Item = (usize, usize, f64)>) {
+        for (r, c, v) in entries {
+            self.push(r, c, v);
+        }
+    }
+
+    /// Reserve space for `n` more entries.
+    pub fn reserve(&mut self, n: usize) {
+        self.rows.reserve(n);
+        self.cols.reserve(n);
+        self.vals.reserve(n);
+    }
+
+    /// Number of entries.
+    pub fn len(&self) -> usize {
+        self.vals.len()
+    }
+
+    /// Whether there are no entries.
+    pub fn is_empty(&self) -> bool {
+        self.vals.is_empty()
+    }
+
+    /// Append another list (e.g. one built by another thread).
+    pub fn append(&mut self, other: &Triplets) {
+        self.rows.extend_from_slice(&other.rows);
+        self.cols.extend_from_slice(&other.cols);
+        self.vals.extend_from_slice(&other.vals);
+    }
+}
+
+/// Upper triangle of a symmetric matrix in CSC form, with the pattern of the previous build.
+#[derive(Clone, Debug, Default)]
+pub struct UpperCsc {
+    pub(crate) n: usize,
+    pub(crate) col_ptr: Vec<usize>,
+    pub(crate) row_idx: Vec<usize>,
+    pub(crate) values: Vec<f64>,
+    // Scratch for the counting sort.
+    count: Vec<usize>,
+    tmp_rows: Vec<u32>,
+    tmp_vals: Vec<f64>,
+    prev_col_ptr: Vec<usize>,
+    prev_row_idx: Vec<usize>,
+}
+
+impl UpperCsc {
+    /// Number of rows (= columns).
+    pub fn n(&self) -> usize {
+        self.n
+    }
+
+    /// Stored entries.
+    pub fn nnz(&self) -> usize {
+        self.values.len()
+    }
+
+    /// Column pointers.
+    pub fn col_ptr(&self) -> &[usize] {
+        &self.col_ptr
+    }
+
+    /// Row indices.
+    pub fn row_idx(&self) -> &[usize] {
+        &self.row_idx
+    }
+
+    /// Values.
+    pub fn values(&self) -> &[f64] {
+        &self.values
+    }
+
+    /// Mutable values (e.g. to shift the diagonal).
+    pub fn values_mut(&mut self) -> &mut [f64] {
+        &mut self.values
+    }
+
+    /// Index of the diagonal entry of column `j` in `values` (the last entry of the column, if
+    /// present).
+    pub fn diagonal_index(&self, j: usize) -> Option<usize> {
+        let end = self.col_ptr[j + 1];
+        (end > self.col_ptr[j] && self.row_idx[end - 1] == j).then_some(end - 1)
+    }
+
+    /// Build from triplets over all DOFs, keeping free DOFs only (`free[dof]` is the free index
+    /// or `u32::MAX`) and the upper triangle. Returns whether the sparsity pattern changed since
+    /// the previous build. Every diagonal entry of a free DOF is present (zero if not given), so
+    /// that diagonal shifts always have a slot.
+    pub fn assemble(&mut self, t: &Triplets, free: &[u32], n_free: usize) -> bool {
+        std::mem::swap(&mut self.prev_col_ptr, &mut self.col_ptr);
+        std::mem::swap(&mut self.prev_row_idx, &mut self.row_idx);
+        let n = n_free;
+        self.n = n;
+        // 1. Count per column (upper part of free × free), plus one diagonal slot each.
+        self.count.clear();
+        self.count.resize(n + 1, 0);
+        for c in 0..n {
+            self.count[c + 1] = 1;
+        }
+        for k in 0..t.vals.len() {
+            let (fr, fc) = (free[t.rows[k] as usize], free[t.cols[k] as usize]);
+            if fr != u32::MAX && fc != u32::MAX && fr <= fc {
+                self.count[fc as usize + 1] += 1;
+            }
+        }
+        for c in 0..n {
+            self.count[c + 1] += self.count[c];
+        }
+        let total = self.count[n];
+        self.tmp_rows.clear();
+        self.tmp_rows.resize(total, 0);
+        self.tmp_vals.clear();
+        self.tmp_vals.resize(total, 0.0);
+        // Diagonal slots first.
+        let mut fill: Vec<usize> = self.count[..n].to_vec();
+        for c in 0..n {
+            self.tmp_rows[fill[c]] = c as u32;
+            fill[c] += 1;
+        }
+        for k in 0..t.vals.len() {
+            let (fr, fc) = (free[t.rows[k] as usize], free[t.cols[k] as usize]);
+            if fr != u32::MAX && fc != u32::MAX && fr <= fc {
+                let at = fill[fc as usize];
+                self.tmp_rows[at] = fr;
+                self.tmp_vals[at] = t.vals[k];
+                fill[fc as usize] += 1;
+            }
+        }
+        // 2. Sort and merge within each column (parallel; columns are independent).
+        let count = &self.count;
+        let mut merged_len = vec![0usize; n];
+        {
+            let rows = SendPtr(self.tmp_rows.as_mut_ptr());
+            let vals = SendPtr(self.tmp_vals.as_mut_ptr());
+            merged_len
+                .par_iter_mut()
+                .enumerate()
+                .with_min_len(256)
+                .for_each(|(c, len)| {
+                    let (a, b) = (count[c], count[c + 1]);
+                    // SAFETY: column ranges [count[c], count[c+1]) are disjoint, so each task has
+                    // exclusive access to its own sub-slices.
+                    let (r, v) = unsafe {
+                        (
+                            std::slice::from_raw_parts_mut(rows.get().add(a), b - a),
+                            std::slice::from_raw_parts_mut(vals.get().add(a), b - a),
+                        )
+                    };
+                    *len = sort_merge(r, v);
+                });
+        }
+        // 3. Compact into the output arrays.
+        self.col_ptr.clear();
+        self.col_ptr.push(0);
+        let nnz: usize = merged_len.iter().sum();
+        self.row_idx.clear();
+        self.row_idx.reserve(nnz);
+        self.values.clear();
+        self.values.reserve(nnz);
+        for c in 0..n {
+            let a = count[c];
+            let m = merged_len[c];
+            self.row_idx
+                .extend(self.tmp_rows[a..a + m].iter().map(|&r| r as usize));
+            self.values.extend_from_slice(&self.tmp_vals[a..a + m]);
+            self.col_ptr.push(self.row_idx.len());
+        }
+        self.col_ptr != self.prev_col_ptr || self.row_idx != self.prev_row_idx
+    }
+}
+
+/// Sort `(rows, vals)` by row and merge duplicates (summing values); returns the merged length.
+fn sort_merge(rows: &mut [u32], vals: &mut [f64]) -> usize {
+    let n = rows.len();
+    if n == 0 {
+        return 0;
+    }
+    // Insertion sort: columns are short and often nearly sorted.
+    for i in 1..n {
+        let (r, v) = (rows[i], vals[i]);
+        let mut j = i;
+        while j > 0 && rows[j - 1] > r {
+            rows[j] = rows[j - 1];
+            vals[j] = vals[j - 1];
+            j -= 1;
+        }
+        rows[j] = r;
+        vals[j] = v;
+    }
+    let mut w = 0;
+    for i in 1..n {
+        if rows[i] == rows[w] {
+            vals[w] += vals[i];
+        } else {
+            w += 1;
+            rows[w] = rows[i];
+            vals[w] = vals[i];
+        }
+    }
+    w + 1
+}
+
+#[derive(Clone, Copy)]
+struct SendPtr<T>(*mut T);
+impl<T> SendPtr<T> {
+    fn get(self) -> *mut T {
+        self.0
+    }
+}
+// SAFETY: used only to hand disjoint sub-slices to rayon tasks (see `assemble`).
+unsafe impl<T> Send for SendPtr<T> {}
+// SAFETY: as above.
+unsafe impl<T> Sync for SendPtr<T> {}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn assembles_upper_free_part_and_detects_pattern_changes() {
+        let mut t = Triplets::default();
+        // 3 DOFs, DOF 1 fixed; full symmetric input with duplicates.
+        for &(r, c, v) in &[
+            (0, 0, 1.0),
+            (0, 2, 2.0),
+            (2, 0, 2.0),
+            (2, 2, 3.0),
+            (0, 0, 0.5),
+            (1, 1, 9.0),
+            (0, 1, 7.0),
+            (1, 0, 7.0),
+        ] {
+            t.push(r, c, v);
+        }
+        let free = [0u32, u32::MAX, 1];
+        let mut a = UpperCsc::default();
+        assert!(a.assemble(&t, &free, 2));
+        assert_eq!(a.col_ptr(), &[0, 1, 3]);
+        assert_eq!(a.row_idx(), &[0, 0, 1]);
+        assert_eq!(a.values(), &[1.5, 2.0, 3.0]);
+        assert_eq!(a.diagonal_index(1), Some(2));
+        // Same pattern, new values.
+        t.vals.iter_mut().for_each(|v| *v *= 2.0);
+        assert!(!a.assemble(&t, &free, 2));
+        assert_eq!(a.values(), &[3.0, 4.0, 6.0]);
+        // Remove the coupling: pattern changes; diagonals stay.
+        t.clear();
+        t.push(0, 0, 1.0);
+        assert!(a.assemble(&t, &free, 2));
+        assert_eq!(a.row_idx(), &[0, 1]);
+        assert_eq!(a.values(), &[1.0, 0.0]);
+    }
+}

@@ -1,0 +1,601 @@
+//! Projected Newton on problems with known answers, the feasibility filter, Dirichlet DOFs,
+//! the time integrators against their closed-form discrete solutions, and failing solves.
+
+use femp_solver::{
+    Integrator, Newton, NewtonParams, Objective, Ordering, SolveError, StepBound, StepLimit,
+    Threads, Triplets,
+};
+use nalgebra::{DMatrix, DVector};
+
+/// `E = ½ xᵀAx − bᵀx`.
+struct Quadratic {
+    a: DMatrix<f64>,
+    b: DVector<f64>,
+}
+
+impl Objective for Quadratic {
+    fn num_dofs(&self) -> usize {
+        self.b.len()
+    }
+    fn energy(&mut self, x: &[f64]) -> f64 {
+        let x = DVector::from_column_slice(x);
+        0.5 * x.dot(&(&self.a * &x)) - self.b.dot(&x)
+    }
+    fn gradient(&mut self, x: &[f64], g: &mut [f64]) {
+        let r = &self.a * DVector::from_column_slice(x) - &self.b;
+        g.copy_from_slice(r.as_slice());
+    }
+    fn hessian(&mut self, _x: &[f64], h: &mut Triplets) {
+        for i in 0..self.b.len() {
+            for j in 0..self.b.len() {
+                if self.a[(i, j)] != 0.0 {
+                    h.push(i, j, self.a[(i, j)]);
+                }
+            }
+        }
+    }
+}
+
+fn spd(n: usize, seed: u64) -> DMatrix<f64> {
+    let mut s = seed;
+    let mut rnd = || {
+        s = s
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
+        (s >> 11) as f64 / (1u64 << 53) as f64 - 0.5
+    };
+    let x = DMatrix::from_fn(n, n, |_, _| rnd());
+    x.transpose() * x + DMatrix::identity(n, n)
+}
+
+#[test]
+fn quadratic_converges_in_one_newton_step() {
+    for (n, ord) in [
+        (5, Ordering::Amd),
+        (40, Ordering::NestedDissection { block: 2 }),
+        (40, Ordering::Auto),
+    ] {
+        let a = spd(n, n as u64);
+        let b = DVector::from_fn(n, |i, _| (i as f64).sin());
+        let exact = a.clone().cholesky().unwrap().solve(&b);
+        let mut obj = Quadratic { a, b };
+        let mut x = vec![0.0; n];
+        let params = NewtonParams {
+            tolerance: 1e-10,
+            ordering: ord,
+            ..Default::default()
+        };
+        // One iteration takes the full step to the minimiser …
+        let mut x1 = x.clone();
+        let err = Newton::new()
+            .minimize(
+                &mut obj,
+                &mut x1,
+                &vec![false; n],
+                &NewtonParams {
+                    max_iterations: 1,
+                    ..params
+                },
+            )
+            .unwrap_err();
+        assert!(matches!(err, SolveError::IterationLimit { .. }));
+        assert!((DVector::from_column_slice(&x1) - &exact).amax() < 1e-10 * exact.amax());
+        // … and the second finds a zero increment.
+        let stats = Newton::new()
+            .minimize(&mut obj, &mut x, &vec![false; n], &params)
+            .unwrap();
+        assert_eq!(stats.iterations, 2);
+        assert_eq!(stats.backtracks, 0);
+        assert_eq!(
+            stats.symbolic_analyses, 1,
+            "the pattern did not change: one symbolic analysis"
+        );
+        assert!((DVector::from_column_slice(&x) - &exact).amax() < 1e-10 * exact.amax());
+    }
+}
+
+/// A chain of point masses joined by springs of rest length L, the top one fixed, hanging under
+/// gravity in 2D. Springs are nonlinear in the positions (`½k(|Δx| − L)²`); each spring's
+/// Hessian is projected to PSD in closed form.
+struct Chain {
+    n: usize,
+    k: f64,
+    rest: f64,
+    m: Vec<f64>,
+    g: f64,
+}
+
+impl Chain {
+    fn spring(&self, x: &[f64], j: usize) -> ([f64; 2], f64) {
+        let d = [x[2 * j] - x[2 * j - 2], x[2 * j + 1] - x[2 * j - 1]];
+        (d, (d[0] * d[0] + d[1] * d[1]).sqrt())
+    }
+}
+
+impl Objective for Chain {
+    fn num_dofs(&self) -> usize {
+        2 * self.n
+    }
+    fn energy(&mut self, x: &[f64]) -> f64 {
+        let mut e = 0.0;
+        for j in 1..self.n {
+            let (_, l) = self.spring(x, j);
+            e += 0.5 * self.k * (l - self.rest).powi(2);
+        }
+        for j in 0..self.n {
+            e += self.m[j] * self.g * x[2 * j + 1];
+        }
+        e
+    }
+    fn gradient(&mut self, x: &[f64], g: &mut [f64]) {
+        g.iter_mut().for_each(|v| *v = 0.0);
+        for j in 1..self.n {
+            let (d, l) = self.spring(x, j);
+            let f = self.k * (l - self.rest) / l;
+            for a in 0..2 {
+                g[2 * j + a] += f * d[a];
+                g[2 * j - 2 + a] -= f * d[a];
+            }
+        }
+        for j in 0..self.n {
+            g[2 * j + 1] += self.m[j] * self.g;
+        }
+    }
+    fn hessian(&mut self, x: &[f64], h: &mut Triplets) {
+        for j in 1..self.n {
+            let (d, l) = self.spring(x, j);
+            let u = [d[0] / l, d[1] / l];
+            // K = k (û ûᵀ + max(0, 1 − L/l)(I − û ûᵀ)): the PSD part of the spring Hessian.
+            let c = (1.0 - self.rest / l).max(0.0);
+            let mut kb = [[0.0; 2]; 2];
+            for a in 0..2 {
+                for b in 0..2 {
+                    let id = if a == b { 1.0 } else { 0.0 };
+                    kb[a][b] = self.k * (u[a] * u[b] + c * (id - u[a] * u[b]));
+                }
+            }
+            for (p, q, s) in [
+                (j, j, 1.0),
+                (j - 1, j - 1, 1.0),
+                (j, j - 1, -1.0),
+                (j - 1, j, -1.0),
+            ] {
+                for a in 0..2 {
+                    for b in 0..2 {
+                        h.push(2 * p + a, 2 * q + b, s * kb[a][b]);
+                    }
+                }
+            }
+        }
+    }
+}
+
+#[test]
+fn mass_spring_chain_reaches_its_static_equilibrium() {
+    let n = 30;
+    let mut chain = Chain {
+        n,
+        k: 250.0,
+        rest: 0.1,
+        m: (0..n).map(|j| 0.05 + 0.01 * j as f64).collect(),
+        g: 9.81,
+    };
+    // Start stretched out sideways (far from equilibrium).
+    let mut x: Vec<f64> = (0..n).flat_map(|j| [0.1 * j as f64, 0.0]).collect();
+    let mut fixed = vec![false; 2 * n];
+    fixed[0] = true;
+    fixed[1] = true;
+    let stats = Newton::new()
+        .minimize(
+            &mut chain,
+            &mut x,
+            &fixed,
+            &NewtonParams {
+                tolerance: 1e-12,
+                ..Default::default()
+            },
+        )
+        .unwrap();
+    // Analytic: spring j carries the weight below it, T_j = g Σ_{i ≥ j} m_i, so its length is
+    // L + T_j/k and the chain hangs straight down.
+    let mut y = 0.0;
+    for j in 1..n {
+        let t: f64 = chain.m[j..].iter().sum::<f64>() * chain.g;
+        y -= chain.rest + t / chain.k;
+        assert!(x[2 * j].abs() < 1e-9, "mass {j} x = {}", x[2 * j]);
+        assert!(
+            (x[2 * j + 1] - y).abs() < 1e-9,
+            "mass {j}: y = {} vs {y}",
+            x[2 * j + 1]
+        );
+    }
+    assert_eq!((x[0], x[1]), (0.0, 0.0), "the fixed DOFs moved");
+    assert!(stats.iterations > 2 && stats.iterations < 100, "{stats:?}");
+}
+
+/// A particle falling onto a wall at x = 0 with a log barrier, one huge time step
+/// (backward Euler, Δt = 1 s, v₀ = −100 m/s). The unsigned distance |x| makes the far side look
+/// feasible: an unfiltered Newton step jumps through the wall; with the feasible-step bound it
+/// never does.
+struct Falling {
+    m: f64,
+    x_hat: f64,
+    w: f64,
+    kappa: f64,
+    dhat: f64,
+    filter: bool,
+    min_x_evaluated: f64,
+}
+
+impl Falling {
+    fn b(&self, d: f64) -> (f64, f64, f64) {
+        if d >= self.dhat {
+            return (0.0, 0.0, 0.0);
+        }
+        let r = d / self.dhat;
+        let k = self.kappa;
+        (
+            -k * (r - 1.0).powi(2) * r.ln(),
+            -k * (2.0 * (r - 1.0) * r.ln() / self.dhat + (r - 1.0).powi(2) / d),
+            -k * (2.0 * r.ln() / (self.dhat * self.dhat) + 4.0 * (r - 1.0) / (self.dhat * d)
+                - (r - 1.0).powi(2) / (d * d)),
+        )
+    }
+}
+
+impl Objective for Falling {
+    fn num_dofs(&self) -> usize {
+        1
+    }
+    fn energy(&mut self, x: &[f64]) -> f64 {
+        self.min_x_evaluated = self.min_x_evaluated.min(x[0]);
+        let d = x[0].abs();
+        if d == 0.0 {
+            return f64::INFINITY;
+        }
+        0.5 * self.m * (x[0] - self.x_hat).powi(2) + self.w * (self.m * 9.81 * x[0] + self.b(d).0)
+    }
+    fn gradient(&mut self, x: &[f64], g: &mut [f64]) {
+        let d = x[0].abs();
+        g[0] =
+            self.m * (x[0] - self.x_hat) + self.w * (self.m * 9.81 + self.b(d).1 * x[0].signum());
+    }
+    fn hessian(&mut self, x: &[f64], h: &mut Triplets) {
+        h.push(0, 0, self.m + self.w * self.b(x[0].abs()).2.max(0.0));
+    }
+    fn max_step(&mut self, x: &[f64], p: &[f64]) -> StepBound {
+        if self.filter && p[0] < 0.0 && x[0] + p[0] <= 0.0 {
+            // 1D "CCD": the step reaches the wall at α = x/(−p).
+            StepBound {
+                alpha: x[0] / -p[0],
+                limit: Some(StepLimit::Ccd),
+            }
+        } else {
+            StepBound::UNLIMITED
+        }
+    }
+}
+
+#[test]
+fn barrier_with_feasibility_filter_never_crosses_at_huge_time_steps() {
+    let dt = 1.0;
+    let (x0, v0) = (1.0, -100.0);
+    let make = |filter| Falling {
+        m: 1.0,
+        x_hat: x0 + dt * v0,
+        w: Integrator::BackwardEuler.weight(dt),
+        kappa: 1e3,
+        dhat: 0.01,
+        filter,
+        min_x_evaluated: f64::INFINITY,
+    };
+    let params = NewtonParams {
+        tolerance: 1e-9,
+        dt,
+        ..Default::default()
+    };
+    let mut filtered = make(true);
+    let mut x = [x0];
+    let stats = Newton::new()
+        .minimize(&mut filtered, &mut x, &[false], &params)
+        .unwrap();
+    assert!(
+        filtered.min_x_evaluated > 0.0,
+        "an evaluated point crossed the wall: {}",
+        filtered.min_x_evaluated
+    );
+    assert!(x[0] > 0.0 && x[0] < 0.01, "x = {}", x[0]);
+    assert!(stats.limited_by_ccd > 0);
+    // At rest on the wall the barrier balances the inertia of the step and gravity.
+    let mut g = [0.0];
+    filtered.gradient(&x, &mut g);
+    assert!(g[0].abs() < 1e-6 * 100.0, "gradient {}", g[0]);
+
+    // Without the filter the first Newton step jumps through the wall and the solve ends on the
+    // wrong side.
+    let mut unfiltered = make(false);
+    let mut y = [x0];
+    let _ = Newton::new().minimize(&mut unfiltered, &mut y, &[false], &params);
+    assert!(unfiltered.min_x_evaluated < 0.0);
+    assert!(y[0] < 0.0, "unfiltered run ended at {}", y[0]);
+}
+
+#[test]
+fn dirichlet_dofs_keep_their_prescribed_values_exactly() {
+    let n = 12;
+    let mut obj = Quadratic {
+        a: spd(n, 3),
+        b: DVector::from_fn(n, |i, _| 1.0 + i as f64),
+    };
+    let mut x = vec![0.0; n];
+    let mut fixed = vec![false; n];
+    for (d, v) in [(0, 0.123456789), (5, -2.5), (11, 1e-7)] {
+        fixed[d] = true;
+        x[d] = v;
+    }
+    Newton::new()
+        .minimize(
+            &mut obj,
+            &mut x,
+            &fixed,
+            &NewtonParams {
+                tolerance: 1e-12,
+                ..Default::default()
+            },
+        )
+        .unwrap();
+    assert_eq!((x[0], x[5], x[11]), (0.123456789, -2.5, 1e-7));
+    // The free DOFs satisfy the reduced equations.
+    let mut g = vec![0.0; n];
+    obj.gradient(&x, &mut g);
+    for d in 0..n {
+        if !fixed[d] {
+            assert!(g[d].abs() < 1e-9, "free DOF {d}: residual {}", g[d]);
+        }
+    }
+}
+
+/// One step of a linear oscillator `m ẍ = −k x` in incremental-potential form.
+struct Oscillator {
+    m: f64,
+    k: f64,
+    x_hat: f64,
+    w: f64,
+}
+
+impl Objective for Oscillator {
+    fn num_dofs(&self) -> usize {
+        1
+    }
+    fn energy(&mut self, x: &[f64]) -> f64 {
+        0.5 * self.m * (x[0] - self.x_hat).powi(2) + self.w * 0.5 * self.k * x[0] * x[0]
+    }
+    fn gradient(&mut self, x: &[f64], g: &mut [f64]) {
+        g[0] = self.m * (x[0] - self.x_hat) + self.w * self.k * x[0];
+    }
+    fn hessian(&mut self, _x: &[f64], h: &mut Triplets) {
+        h.push(0, 0, self.m + self.w * self.k);
+    }
+}
+
+fn integrate(scheme: Integrator, steps: usize, dt: f64) -> Vec<(f64, f64)> {
+    let (m, k) = (2.0, 50.0);
+    let (mut x, mut v, mut a) = ([1.0], [0.0], [-k / m * 1.0]);
+    if scheme == Integrator::BackwardEuler {
+        a = [0.0];
+    }
+    let mut newton = Newton::new();
+    let mut out = vec![(x[0], v[0])];
+    let mut x_hat = [0.0];
+    for _ in 0..steps {
+        scheme.predictor(dt, &x, &v, &a, &mut x_hat);
+        let mut obj = Oscillator {
+            m,
+            k,
+            x_hat: x_hat[0],
+            w: scheme.weight(dt),
+        };
+        let mut xn = x;
+        newton
+            .minimize(
+                &mut obj,
+                &mut xn,
+                &[false],
+                &NewtonParams {
+                    tolerance: 1e-13,
+                    dt,
+                    ..Default::default()
+                },
+            )
+            .unwrap();
+        scheme.update(dt, &xn, &x_hat, &mut v, &mut a);
+        x = xn;
+        out.push((x[0], v[0]));
+    }
+    out
+}
+
+#[test]
+fn integrators_match_their_closed_form_discrete_solutions() {
+    let (m, k, dt, steps) = (2.0f64, 50.0f64, 0.05f64, 400);
+    let w2 = k / m;
+    let energy = |(x, v): (f64, f64)| 0.5 * m * v * v + 0.5 * k * x * x;
+    // Newmark (average acceleration): the amplification matrix of
+    // x' = x + Δt v + Δt²/4 (a + a'), v' = v + Δt/2 (a + a'), a = −ω² x.
+    let c = 1.0 + w2 * dt * dt / 4.0;
+    let nm = nalgebra::Matrix2::new(
+        (1.0 - w2 * dt * dt / 4.0) / c,
+        dt / c,
+        -w2 * dt / c,
+        (1.0 - w2 * dt * dt / 4.0) / c,
+    );
+    // Backward Euler: x' = (x + Δt v)/(1 + ω²Δt²), v' = (x' − x)/Δt.
+    let d = 1.0 + w2 * dt * dt;
+    let be = nalgebra::Matrix2::new(1.0 / d, dt / d, -w2 * dt / d, 1.0 / d);
+    for (scheme, amp) in [(Integrator::Newmark, nm), (Integrator::BackwardEuler, be)] {
+        let traj = integrate(scheme, steps, dt);
+        let mut s = nalgebra::Vector2::new(1.0, 0.0);
+        for (i, &(x, v)) in traj.iter().enumerate() {
+            assert!(
+                (x - s[0]).abs() < 1e-9 && (v - s[1]).abs() < 1e-8,
+                "{scheme:?} step {i}: ({x}, {v}) vs ({}, {})",
+                s[0],
+                s[1]
+            );
+            s = amp * s;
+        }
+        let (e0, e1) = (energy(traj[0]), energy(*traj.last().unwrap()));
+        match scheme {
+            // Exactly conservative for linear problems (a Cayley transform): to solver tolerance.
+            Integrator::Newmark => assert!(
+                (e1 - e0).abs() < 1e-9 * e0,
+                "Newmark energy drift {}",
+                (e1 - e0) / e0
+            ),
+            // Dissipative: the energy decays like (1 + ω²Δt²)^(−n) for the oscillation.
+            Integrator::BackwardEuler => assert!(e1 < 0.2 * e0, "backward Euler kept {}", e1 / e0),
+        }
+    }
+}
+
+/// Objectives that make the solve fail: NaN beyond a point the minimum lies behind, and an
+/// energy unbounded below.
+struct NanWall;
+impl Objective for NanWall {
+    fn num_dofs(&self) -> usize {
+        1
+    }
+    fn energy(&mut self, x: &[f64]) -> f64 {
+        if x[0] > 1.0 {
+            f64::NAN
+        } else {
+            (x[0] - 3.0).powi(2)
+        }
+    }
+    fn gradient(&mut self, x: &[f64], g: &mut [f64]) {
+        g[0] = 2.0 * (x[0] - 3.0);
+    }
+    fn hessian(&mut self, _x: &[f64], h: &mut Triplets) {
+        h.push(0, 0, 2.0);
+    }
+}
+
+struct Unbounded;
+impl Objective for Unbounded {
+    fn num_dofs(&self) -> usize {
+        2
+    }
+    fn energy(&mut self, x: &[f64]) -> f64 {
+        -x[0] - 2.0 * x[1]
+    }
+    fn gradient(&mut self, _x: &[f64], g: &mut [f64]) {
+        g[0] = -1.0;
+        g[1] = -2.0;
+    }
+    fn hessian(&mut self, _x: &[f64], h: &mut Triplets) {
+        h.push(0, 0, 1.0);
+        h.push(1, 1, 1.0);
+    }
+}
+
+#[test]
+fn failing_solves_return_errors_with_statistics() {
+    let mut x = [0.5];
+    let err = Newton::new()
+        .minimize(&mut NanWall, &mut x, &[false], &NewtonParams::default())
+        .unwrap_err();
+    let stats = err.stats().unwrap();
+    assert!(
+        matches!(
+            err,
+            SolveError::LineSearchStalled { .. } | SolveError::IterationLimit { .. }
+        ),
+        "{err}"
+    );
+    assert!(stats.iterations >= 1 && stats.backtracks > 0);
+    assert!(x[0] <= 1.0, "accepted a NaN point: {}", x[0]);
+    assert!(err.to_string().contains("Newton"), "{err}");
+
+    let mut x = [0.0, 0.0];
+    let err = Newton::new()
+        .minimize(
+            &mut Unbounded,
+            &mut x,
+            &[false, false],
+            &NewtonParams {
+                max_iterations: 25,
+                ..Default::default()
+            },
+        )
+        .unwrap_err();
+    match &err {
+        SolveError::IterationLimit { stats } => {
+            assert_eq!(stats.iterations, 25);
+            assert!(stats.final_energy < -50.0);
+        }
+        other => panic!("expected the iteration limit, got {other}"),
+    }
+    assert!(
+        err.to_string()
+            .starts_with("Newton did not converge in 25 iterations")
+    );
+
+    // A non-finite starting energy and an inconsistent problem are reported, not panicked on.
+    let mut x = [2.0];
+    assert!(matches!(
+        Newton::new()
+            .minimize(&mut NanWall, &mut x, &[false], &NewtonParams::default())
+            .unwrap_err(),
+        SolveError::NonFinite { .. }
+    ));
+    assert!(matches!(
+        Newton::new()
+            .minimize(
+                &mut NanWall,
+                &mut [0.0, 0.0],
+                &[false],
+                &NewtonParams::default()
+            )
+            .unwrap_err(),
+        SolveError::BadProblem(_)
+    ));
+}
+
+/// A PSD but singular Hessian (a DOF with no stiffness and no mass) is factorised after a
+/// diagonal shift, counted in the statistics.
+struct Singular;
+impl Objective for Singular {
+    fn num_dofs(&self) -> usize {
+        2
+    }
+    fn energy(&mut self, x: &[f64]) -> f64 {
+        (x[0] - 1.0).powi(2)
+    }
+    fn gradient(&mut self, x: &[f64], g: &mut [f64]) {
+        g[0] = 2.0 * (x[0] - 1.0);
+        g[1] = 0.0;
+    }
+    fn hessian(&mut self, _x: &[f64], h: &mut Triplets) {
+        h.push(0, 0, 2.0);
+        h.push(1, 1, 0.0);
+    }
+}
+
+#[test]
+fn singular_psd_hessians_are_regularised_and_counted() {
+    let mut x = [0.0, 5.0];
+    let stats = Newton::new()
+        .minimize(
+            &mut Singular,
+            &mut x,
+            &[false, false],
+            &NewtonParams {
+                threads: Threads::Seq,
+                ..Default::default()
+            },
+        )
+        .unwrap();
+    assert!((x[0] - 1.0).abs() < 1e-9);
+    assert_eq!(x[1], 5.0);
+    assert!(stats.regularizations > 0);
+}
