@@ -184,14 +184,35 @@ impl Newton {
         fixed: &[bool],
         params: &NewtonParams,
     ) -> Result<SolveStats, SolveError> {
+        let target = x.to_vec();
+        self.minimize_to(obj, x, fixed, &target, params)
+    }
+
+    /// Like [`Newton::minimize`], but the Dirichlet DOFs move from their values in `x` to
+    /// `target` *as part of the Newton steps*: their increment is `target − x`, the free DOFs
+    /// solve `H_ff p_f = −g_f − H_fd p_d`, and the line search (with its feasibility bound)
+    /// applies to the whole step. A prescribed motion that would pass through an obstacle is thus
+    /// taken only as far as contact allows, and completed over the next iterations; the solve
+    /// converges once every fixed DOF is at its target (set exactly) and `‖p‖_∞/Δt < ε_d`.
+    /// While targets are not reached, a step is accepted if its energy is finite (the prescribed
+    /// motion may do work and raise the energy); from then on the usual Armijo condition holds.
+    pub fn minimize_to(
+        &mut self,
+        obj: &mut impl Objective,
+        x: &mut [f64],
+        fixed: &[bool],
+        target: &[f64],
+        params: &NewtonParams,
+    ) -> Result<SolveStats, SolveError> {
         let n = obj.num_dofs();
         let mut stats = SolveStats::default();
-        if x.len() != n || fixed.len() != n {
+        if x.len() != n || fixed.len() != n || target.len() != n {
             return Err(SolveError::BadProblem(format!(
-                "{} DOFs but x has {} entries and fixed has {}",
+                "{} DOFs but x has {} entries, fixed {} and target {}",
                 n,
                 x.len(),
-                fixed.len()
+                fixed.len(),
+                target.len()
             )));
         }
         if !(params.dt > 0.0 && params.tolerance > 0.0) {
@@ -240,7 +261,8 @@ impl Newton {
             stats.regularizations = chol.stats.regularizations - lin0.regularizations;
             stats.symbolic_analyses = chol.stats.symbolic_count - lin0.symbolic_count;
         };
-        if nf == 0 {
+        let moving = (0..n).any(|d| fixed[d] && target[d] != x[d]);
+        if nf == 0 && !moving {
             finish(&mut stats, &self.chol, e);
             return Ok(stats);
         }
@@ -274,13 +296,33 @@ impl Newton {
                     stats: Box::new(stats),
                 });
             }
-            for (k, &d) in self.free_dofs.iter().enumerate() {
-                self.rhs[k] = -self.g[d];
-            }
-            self.chol.solve_in_place(&mut self.rhs);
+            // Prescribed increments of the fixed DOFs, and their coupling −H_fd p_d.
             self.p.iter_mut().for_each(|v| *v = 0.0);
             let mut pmax = 0.0f64;
             let mut gp = 0.0;
+            for d in 0..n {
+                if fixed[d] {
+                    self.p[d] = target[d] - x[d];
+                    pmax = pmax.max(self.p[d].abs());
+                    gp += self.g[d] * self.p[d];
+                }
+            }
+            for (k, &d) in self.free_dofs.iter().enumerate() {
+                self.rhs[k] = -self.g[d];
+            }
+            if pmax > 0.0 {
+                let t = &self.triplets;
+                for k in 0..t.vals.len() {
+                    let (r, c) = (t.rows[k] as usize, t.cols[k] as usize);
+                    let fr = self.free[r];
+                    if fr != u32::MAX && fixed[c] {
+                        self.rhs[fr as usize] -= t.vals[k] * self.p[c];
+                    }
+                }
+            }
+            if nf > 0 {
+                self.chol.solve_in_place(&mut self.rhs);
+            }
             for (k, &d) in self.free_dofs.iter().enumerate() {
                 self.p[d] = self.rhs[k];
                 pmax = pmax.max(self.rhs[k].abs());
@@ -294,7 +336,8 @@ impl Newton {
                 });
             }
             stats.final_residual = pmax / params.dt;
-            let converged = stats.final_residual < params.tolerance;
+            let at_targets = (0..n).all(|d| !fixed[d] || x[d] == target[d]);
+            let converged = at_targets && stats.final_residual < params.tolerance;
 
             // Line search.
             let t = Instant::now();
@@ -315,7 +358,15 @@ impl Newton {
                     self.trial[d] = x[d] + alpha * self.p[d];
                 }
                 let et = obj.energy(&self.trial);
-                if et.is_finite() && et <= e + params.armijo * alpha * gp {
+                // While prescribed DOFs are still on their way, the energy may rise (the motion
+                // does work on the system): accept any feasible, finite step then. Afterwards,
+                // Armijo.
+                let ok = if at_targets {
+                    et <= e + params.armijo * alpha * gp
+                } else {
+                    true
+                };
+                if et.is_finite() && ok {
                     accepted = Some(et);
                     break;
                 }
@@ -326,6 +377,14 @@ impl Newton {
             match accepted {
                 Some(et) => {
                     x.copy_from_slice(&self.trial);
+                    if alpha == 1.0 {
+                        // A full step reaches the targets exactly (no round-off drift).
+                        for d in 0..n {
+                            if fixed[d] {
+                                x[d] = target[d];
+                            }
+                        }
+                    }
                     e = et;
                 }
                 None if converged => {

@@ -599,3 +599,57 @@ fn singular_psd_hessians_are_regularised_and_counted() {
     assert_eq!(x[1], 5.0);
     assert!(stats.regularizations > 0);
 }
+
+/// Dirichlet DOFs driven to targets inside the Newton steps: `E = ½(x₁ − x₀)² + ½x₁²` with
+/// `x₀` prescribed to move from 0 to 2 gives `x₁ = 1`, and `x₀` lands exactly on its target.
+struct Coupled;
+impl Objective for Coupled {
+    fn num_dofs(&self) -> usize {
+        2
+    }
+    fn energy(&mut self, x: &[f64]) -> f64 {
+        0.5 * (x[1] - x[0]).powi(2) + 0.5 * x[1] * x[1]
+    }
+    fn gradient(&mut self, x: &[f64], g: &mut [f64]) {
+        g[0] = x[0] - x[1];
+        g[1] = 2.0 * x[1] - x[0];
+    }
+    fn hessian(&mut self, _x: &[f64], h: &mut Triplets) {
+        h.extend([(0, 0, 1.0), (0, 1, -1.0), (1, 0, -1.0), (1, 1, 2.0)]);
+    }
+    fn max_step(&mut self, x: &[f64], p: &[f64]) -> StepBound {
+        // Something (say, a collision that later resolves) limits the very first step.
+        if x[0] == 0.0 && p[0] > 0.0 {
+            StepBound {
+                alpha: 0.25,
+                limit: Some(StepLimit::Ccd),
+            }
+        } else {
+            StepBound::UNLIMITED
+        }
+    }
+}
+
+#[test]
+fn prescribed_dofs_reach_their_targets_through_the_line_search() {
+    let mut x = [0.0, 0.0];
+    let stats = Newton::new()
+        .minimize_to(
+            &mut Coupled,
+            &mut x,
+            &[true, false],
+            &[2.0, 0.0],
+            &NewtonParams {
+                tolerance: 1e-12,
+                ..Default::default()
+            },
+        )
+        .unwrap();
+    assert_eq!(x[0], 2.0);
+    assert!((x[1] - 1.0).abs() < 1e-12);
+    // The first step was cut by the bound, so reaching the target took more than one step.
+    assert!(
+        stats.limited_by_ccd >= 1 && stats.iterations >= 3,
+        "{stats:?}"
+    );
+}
