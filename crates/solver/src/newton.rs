@@ -102,6 +102,13 @@ impl Default for NewtonParams {
     }
 }
 
+/// Relative round-off of an energy evaluation: a predicted decrease `−gᵀp` below
+/// `ROUNDOFF·|E|` (about five ulps) cannot be resolved by a line search.
+pub const ROUNDOFF: f64 = 1e-15;
+
+/// Consecutive round-off-flat iterations without ‖p‖ halving that end a solve as stationary.
+const STAGNATION_ITERATIONS: usize = 4;
+
 /// Statistics of one solve.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct SolveStats {
@@ -121,6 +128,10 @@ pub struct SolveStats {
     pub final_energy: f64,
     /// Diagonal shifts applied to make a Hessian factorisable.
     pub regularizations: usize,
+    /// Solves ended as stationary to working precision before `‖p‖_∞/Δt` reached the
+    /// tolerance: the predicted decrease `−gᵀp` stayed below `ROUNDOFF·|E|` while ‖p‖ stopped
+    /// shrinking, or no step decreased the energy and `−gᵀp ≤ 10⁴·ROUNDOFF·|E|`.
+    pub roundoff_stops: usize,
     /// Symbolic analyses (sparsity pattern changes).
     pub symbolic_analyses: usize,
     /// Seconds assembling gradient and Hessian (objective calls and CSC build).
@@ -247,6 +258,8 @@ impl Newton {
         let lin0 = self.chol.stats;
 
         let mut e = obj.energy(x);
+        let e0 = e;
+        let mut flat_history: Vec<f64> = Vec::new();
         if !e.is_finite() {
             return Err(SolveError::NonFinite {
                 what: "energy at the initial guess",
@@ -338,6 +351,25 @@ impl Newton {
             stats.final_residual = pmax / params.dt;
             let at_targets = (0..n).all(|d| !fixed[d] || x[d] == target[d]);
             let converged = at_targets && stats.final_residual < params.tolerance;
+            // Stagnation at round-off: the predicted decrease is below the energy's round-off
+            // and ‖p‖ has stopped shrinking (Newton near a minimum shrinks it quadratically).
+            // The iterate is stationary to working precision although ‖p‖ is not small: p lies
+            // in a direction the energy barely sees (e.g. a grid node with a tiny mass, where
+            // the gradient's round-off divided by a tiny curvature dominates p).
+            let flat = at_targets && -gp <= ROUNDOFF * e.abs().max(e0.abs());
+            if flat && !converged {
+                flat_history.push(pmax);
+                let k = flat_history.len();
+                if k >= STAGNATION_ITERATIONS
+                    && flat_history[k - 1] > 0.5 * flat_history[k - STAGNATION_ITERATIONS]
+                {
+                    stats.roundoff_stops += 1;
+                    finish(&mut stats, &self.chol, e);
+                    return Ok(stats);
+                }
+            } else {
+                flat_history.clear();
+            }
 
             // Line search.
             let t = Instant::now();
@@ -389,6 +421,13 @@ impl Newton {
                 }
                 None if converged => {
                     // Already at the tolerance: the last increment is below round-off.
+                }
+                None if at_targets && -gp <= 1e4 * ROUNDOFF * e.abs().max(e0.abs()) => {
+                    // No step decreases the energy and the predicted decrease is within a few
+                    // thousand ulps of it: stationary to working precision.
+                    stats.roundoff_stops += 1;
+                    finish(&mut stats, &self.chol, e);
+                    return Ok(stats);
                 }
                 None => {
                     finish(&mut stats, &self.chol, e);

@@ -653,3 +653,74 @@ fn prescribed_dofs_reach_their_targets_through_the_line_search() {
         "{stats:?}"
     );
 }
+
+/// `E = 1 + ½ x₀² + ½ ε x₁²` whose `x₁` gradient carries a deterministic "round-off" term of
+/// size `η`, as a grid node with a tiny mass does: `p₁ ≈ η/ε` never shrinks, yet no energy
+/// change can be resolved.
+struct NearNullMode {
+    eps: f64,
+    eta: f64,
+    calls: u64,
+}
+
+impl Objective for NearNullMode {
+    fn num_dofs(&self) -> usize {
+        2
+    }
+    fn energy(&mut self, x: &[f64]) -> f64 {
+        1.0 + 0.5 * x[0] * x[0] + 0.5 * self.eps * x[1] * x[1]
+    }
+    fn gradient(&mut self, x: &[f64], g: &mut [f64]) {
+        self.calls += 1;
+        let noise = if self.calls.is_multiple_of(2) { 1.0 } else { -1.0 };
+        g[0] = x[0];
+        g[1] = self.eps * x[1] + noise * self.eta;
+    }
+    fn hessian(&mut self, _x: &[f64], h: &mut Triplets) {
+        h.push(0, 0, 1.0);
+        h.push(1, 1, self.eps);
+    }
+}
+
+#[test]
+fn a_search_direction_lost_in_round_off_ends_the_solve_as_stationary() {
+    let params = NewtonParams {
+        tolerance: 1e-6,
+        dt: 1.0,
+        ..Default::default()
+    };
+    // p₁ = ∓η/ε = 10⁻² each iteration, −gᵀp ≈ η²/ε = 10⁻²⁴ ≪ 10⁻¹⁵ |E|.
+    let mut obj = NearNullMode {
+        eps: 1e-20,
+        eta: 1e-22,
+        calls: 0,
+    };
+    let mut x = vec![0.3, 0.0];
+    let stats = Newton::new()
+        .minimize(&mut obj, &mut x, &[false, false], &params)
+        .unwrap();
+    assert_eq!(stats.roundoff_stops, 1, "{stats:?}");
+    assert!(x[0].abs() < 1e-12, "x₀ = {}", x[0]);
+    assert!(stats.iterations < 10, "{stats:?}");
+
+    // The same mode with a resolvable energy (η/ε large but −gᵀp well above round-off) is
+    // not cut short: it fails with the iteration limit instead.
+    let mut obj = NearNullMode {
+        eps: 1e-4,
+        eta: 1e-6,
+        calls: 0,
+    };
+    let mut x = vec![0.3, 0.0];
+    let err = Newton::new()
+        .minimize(
+            &mut obj,
+            &mut x,
+            &[false, false],
+            &NewtonParams {
+                max_iterations: 20,
+                ..params
+            },
+        )
+        .unwrap_err();
+    assert!(matches!(err, SolveError::IterationLimit { .. }), "{err:?}");
+}
