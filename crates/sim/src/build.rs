@@ -1,0 +1,269 @@
+//! Building bodies from scene specs: particle sampling of MPM shapes, FEM meshes, transforms.
+
+use std::path::Path;
+
+use femp_fem::Mesh;
+use femp_fem::mesh::{generate, gmsh};
+use nalgebra::{SMatrix, SVector, Vector2, Vector3};
+
+use crate::error::SimError;
+use crate::motion::rotation;
+use crate::scene::{MeshSpec, ShapeSpec, TransformSpec};
+
+/// Particles sampled in a shape: positions and volumes.
+#[derive(Clone, Debug, Default)]
+pub struct Samples<const D: usize> {
+    /// Positions.
+    pub x: Vec<SVector<f64, D>>,
+    /// Volumes (area in 2D).
+    pub volume: Vec<f64>,
+}
+
+fn v<const D: usize>(a: &[f64]) -> SVector<f64, D> {
+    SVector::from_column_slice(a)
+}
+
+/// The rigid map of a transform spec.
+pub fn transform_fn<const D: usize>(
+    t: &TransformSpec,
+) -> impl Fn(&SVector<f64, D>) -> SVector<f64, D> + use<D> {
+    let about = t.about.as_deref().map_or_else(SVector::zeros, v::<D>);
+    let trans = t.translate.as_deref().map_or_else(SVector::zeros, v::<D>);
+    let angle = t.rotate_deg.to_radians();
+    let r: SMatrix<f64, D, D> = if D == 2 {
+        rotation::<D>(&[angle], 1.0)
+    } else {
+        let axis = t.axis.clone().unwrap_or_else(|| vec![0.0, 0.0, 1.0]);
+        let n = Vector3::new(axis[0], axis[1], axis[2]).normalize() * angle;
+        rotation::<D>(&[n.x, n.y, n.z], 1.0)
+    };
+    move |x: &SVector<f64, D>| r * (x - about) + about + trans
+}
+
+/// Sample an MPM shape with `per_axis^D` particles per cell of size `h`.
+pub fn sample_shape<const D: usize>(
+    shape: &ShapeSpec,
+    h: f64,
+    per_axis: usize,
+    base_dir: &Path,
+    field: &str,
+) -> Result<Samples<D>, SimError> {
+    let s = h / per_axis as f64;
+    let mut out = Samples::default();
+    match shape {
+        ShapeSpec::Box {
+            min,
+            max,
+            transform,
+        } => {
+            // A lattice aligned with the box (so faces are flat rows of particles), filling it
+            // exactly; then the placement.
+            let (lo, hi) = (v::<D>(min), v::<D>(max));
+            let n: [usize; D] =
+                std::array::from_fn(|a| (((hi[a] - lo[a]) / s).round() as usize).max(1));
+            let step: SVector<f64, D> = SVector::from_fn(|a, _| (hi[a] - lo[a]) / n[a] as f64);
+            let vol: f64 = (0..D).map(|a| step[a]).product();
+            let tf = transform.as_ref().map(transform_fn::<D>);
+            let total: usize = n.iter().product();
+            for flat in 0..total {
+                let mut rem = flat;
+                let mut p = SVector::<f64, D>::zeros();
+                for a in 0..D {
+                    let i = rem % n[a];
+                    rem /= n[a];
+                    p[a] = lo[a] + (i as f64 + 0.5) * step[a];
+                }
+                out.x.push(tf.as_ref().map_or(p, |f| f(&p)));
+                out.volume.push(vol);
+            }
+        }
+        ShapeSpec::Disk { center, radius } => {
+            let c = v::<D>(center);
+            let r = *radius;
+            lattice(&mut out, c.add_scalar(-r), c.add_scalar(r), s, |p| {
+                (p - c).norm() <= r
+            });
+        }
+        ShapeSpec::Ring {
+            center,
+            r_in,
+            r_out,
+        } => {
+            let c = v::<D>(center);
+            let (a, b) = (*r_in, *r_out);
+            lattice(&mut out, c.add_scalar(-b), c.add_scalar(b), s, |p| {
+                let d = (p - c).norm();
+                d >= a && d <= b
+            });
+        }
+        ShapeSpec::SemicircularRing {
+            center,
+            r_in,
+            r_out,
+        } => {
+            let c = v::<D>(center);
+            let (a, b) = (*r_in, *r_out);
+            lattice(&mut out, c.add_scalar(-b), c.add_scalar(b), s, |p| {
+                let d = (p - c).norm();
+                d >= a && d <= b && p[1] >= c[1]
+            });
+        }
+        ShapeSpec::Mesh { file } => {
+            let mesh: Mesh<D> =
+                gmsh::read_msh(&base_dir.join(file)).map_err(|e| SimError::Build {
+                    context: format!("{field}.file"),
+                    message: e.to_string(),
+                })?;
+            let (lo, hi) = mesh.bounding_box();
+            let cells = mesh.cells().to_vec();
+            let xs = mesh.vertices().to_vec();
+            lattice(&mut out, lo, hi, s, |p| {
+                cells.iter().any(|c| inside_simplex(p, &c[..D + 1], &xs))
+            });
+        }
+    }
+    if out.x.is_empty() {
+        return Err(SimError::Invalid {
+            field: field.to_string(),
+            message: format!(
+                "the shape contains no particle at grid spacing {h} and {per_axis} particles per cell axis"
+            ),
+        });
+    }
+    Ok(out)
+}
+
+/// Points `(i + ½) s` inside `[lo, hi]` for which `inside` holds, each with volume `s^D`.
+fn lattice<const D: usize>(
+    out: &mut Samples<D>,
+    lo: SVector<f64, D>,
+    hi: SVector<f64, D>,
+    s: f64,
+    inside: impl Fn(&SVector<f64, D>) -> bool,
+) {
+    let i0: [i64; D] = std::array::from_fn(|a| (lo[a] / s - 0.5).floor() as i64);
+    let i1: [i64; D] = std::array::from_fn(|a| (hi[a] / s - 0.5).ceil() as i64);
+    let n: [usize; D] = std::array::from_fn(|a| (i1[a] - i0[a] + 1).max(0) as usize);
+    let total: usize = n.iter().product();
+    let vol = s.powi(D as i32);
+    for flat in 0..total {
+        let mut rem = flat;
+        let mut p = SVector::<f64, D>::zeros();
+        for a in 0..D {
+            let i = i0[a] + (rem % n[a]) as i64;
+            rem /= n[a];
+            p[a] = (i as f64 + 0.5) * s;
+        }
+        if inside(&p) {
+            out.x.push(p);
+            out.volume.push(vol);
+        }
+    }
+}
+
+/// Whether `p` lies in the closed simplex with vertex indices `c`.
+pub fn inside_simplex<const D: usize>(
+    p: &SVector<f64, D>,
+    c: &[usize],
+    x: &[SVector<f64, D>],
+) -> bool {
+    let t = SMatrix::<f64, D, D>::from_fn(|r, k| x[c[k + 1]][r] - x[c[0]][r]);
+    let Some(inv) = femp_fem::linalg::inverse(&t) else {
+        return false;
+    };
+    let b = inv * (p - x[c[0]]);
+    let tol = -1e-12;
+    b.iter().all(|&l| l >= tol) && b.sum() <= 1.0 - tol
+}
+
+/// Build a FEM mesh from its spec (before the transform).
+pub fn fem_mesh<const D: usize>(
+    spec: &MeshSpec,
+    base_dir: &Path,
+    field: &str,
+) -> Result<Mesh<D>, SimError> {
+    let err = |e: femp_fem::FemError| SimError::Build {
+        context: field.to_string(),
+        message: e.to_string(),
+    };
+    let to_d = |m2: Result<Mesh<2>, femp_fem::FemError>| -> Result<Mesh<D>, SimError> {
+        let m2 = m2.map_err(err)?;
+        let verts: Vec<SVector<f64, D>> = m2
+            .vertices()
+            .iter()
+            .map(|p| SVector::from_fn(|a, _| p[a]))
+            .collect();
+        Mesh::new(verts, m2.cells().to_vec()).map_err(err)
+    };
+    let to_d3 = |m3: Result<Mesh<3>, femp_fem::FemError>| -> Result<Mesh<D>, SimError> {
+        let m3 = m3.map_err(err)?;
+        let verts: Vec<SVector<f64, D>> = m3
+            .vertices()
+            .iter()
+            .map(|p| SVector::from_fn(|a, _| p[a]))
+            .collect();
+        Mesh::new(verts, m3.cells().to_vec()).map_err(err)
+    };
+    let v2 = |a: &[f64]| Vector2::new(a[0], a[1]);
+    match spec {
+        MeshSpec::Rectangle { min, max, cells } => {
+            to_d(generate::rectangle(v2(min), v2(max), cells[0], cells[1]))
+        }
+        MeshSpec::Cuboid { min, max, cells } => to_d3(generate::cuboid(
+            Vector3::new(min[0], min[1], min[2]),
+            Vector3::new(max[0], max[1], max[2]),
+            cells[0],
+            cells[1],
+            cells[2],
+        )),
+        MeshSpec::Disk {
+            center,
+            radius,
+            rings,
+        } => to_d(generate::disk(v2(center), *radius, *rings)),
+        MeshSpec::Ring {
+            center,
+            r_in,
+            r_out,
+            cells,
+        } => to_d(generate::ring(
+            v2(center),
+            *r_in,
+            *r_out,
+            cells[0],
+            cells[1],
+        )),
+        MeshSpec::SemicircularRing {
+            center,
+            r_in,
+            r_out,
+            cells,
+        } => to_d(generate::semicircular_ring(
+            v2(center),
+            *r_in,
+            *r_out,
+            cells[0],
+            cells[1],
+        )),
+        MeshSpec::CosineStrip {
+            amplitude,
+            wavelength,
+            offset,
+            x0,
+            x1,
+            thickness,
+            cells,
+        } => {
+            let (a, w, o) = (*amplitude, *wavelength, *offset);
+            to_d(generate::curve_strip(
+                move |x| o + a * (std::f64::consts::TAU * x / w).cos(),
+                *x0,
+                *x1,
+                *thickness,
+                cells[0],
+                cells[1],
+            ))
+        }
+        MeshSpec::File { path } => gmsh::read_msh::<D>(&base_dir.join(path)).map_err(err),
+    }
+}

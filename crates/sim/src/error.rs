@@ -1,0 +1,70 @@
+//! Errors of scene loading and simulation runs.
+
+use std::path::PathBuf;
+
+/// Everything that can go wrong, named by what and where.
+#[derive(Debug, thiserror::Error)]
+pub enum SimError {
+    /// A file could not be read or written.
+    #[error("{}: {source}", path.display())]
+    Io {
+        /// The file.
+        path: PathBuf,
+        /// The cause.
+        source: std::io::Error,
+    },
+    /// The scene is not valid JSON or does not match the format (unknown field, wrong type).
+    #[error("{file}: {field}: {message}")]
+    SceneFormat {
+        /// Scene file.
+        file: String,
+        /// Field path (`bodies[1].material.nu`), or `(root)`.
+        field: String,
+        /// What serde reported (with line and column).
+        message: String,
+    },
+    /// A value in the scene is out of range or inconsistent.
+    #[error("{field}: {message}")]
+    Invalid {
+        /// Field path.
+        field: String,
+        /// What is wrong.
+        message: String,
+    },
+    /// The initial state violates the non-overlap assumption (BFEMP eq. 15).
+    #[error("bodies `{a}` and `{b}` start overlapping: {detail}")]
+    Overlap {
+        /// First body.
+        a: String,
+        /// Second body.
+        b: String,
+        /// The worst offender.
+        detail: String,
+    },
+    /// A time step failed (Newton, line search, friction, a blow-up).
+    #[error("step {step} (t = {time:.6e} s) failed: {message}")]
+    StepFailed {
+        /// Step index.
+        step: usize,
+        /// Simulated time at the start of the step.
+        time: f64,
+        /// What happened.
+        message: String,
+    },
+    /// An error from a library crate while building the world.
+    #[error("{context}: {message}")]
+    Build {
+        /// Where.
+        context: String,
+        /// The library's message.
+        message: String,
+    },
+}
+
+/// Shorthand for an `Invalid` error.
+pub(crate) fn invalid(field: impl Into<String>, message: impl Into<String>) -> SimError {
+    SimError::Invalid {
+        field: field.into(),
+        message: message.into(),
+    }
+}

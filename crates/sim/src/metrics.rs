@@ -1,0 +1,211 @@
+//! Per-step measurements: energies, momenta, contact distance and an independent penetration
+//! count.
+
+use femp_fem::Hyperelastic;
+use nalgebra::{SMatrix, SVector, Vector3};
+
+use crate::world::{Points, World, inside_elements};
+
+/// One row of `metrics.csv`.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Metrics {
+    /// Step index (after the step).
+    pub step: usize,
+    /// Time.
+    pub t: f64,
+    /// Time step.
+    pub dt: f64,
+    /// Kinetic energy `½ Σ m |v|²` (particles and FEM vertices).
+    pub kinetic_energy: f64,
+    /// Elastic energy `Σ V ψ(F)` (particles and elements).
+    pub elastic_energy: f64,
+    /// Barrier energy `Σ κ ω b(d)` (not multiplied by the time-step weight).
+    pub barrier_energy: f64,
+    /// Gravitational potential energy `−Σ m g·x`.
+    pub gravity_energy: f64,
+    /// Linear momentum.
+    pub momentum: [f64; 3],
+    /// Angular momentum about the origin (z only in 2D), with APIC's `ε : Bᵀ` term.
+    pub angular_momentum: [f64; 3],
+    /// Smallest active contact distance (∞ if no contact).
+    pub min_distance: f64,
+    /// Points inside or on another body (independent of the solver).
+    pub penetrations: usize,
+    /// Newton iterations of the step.
+    pub newton_iterations: usize,
+    /// Friction iterations of the step.
+    pub friction_iterations: usize,
+    /// Wall-clock seconds of the step.
+    pub wall_s: f64,
+}
+
+/// CSV header matching [`Metrics::csv_row`].
+pub fn csv_header<const D: usize>() -> String {
+    let mut h = String::from(
+        "step,t,dt,kinetic_energy,elastic_energy,barrier_energy,gravity_energy,total_energy,momentum_x,momentum_y",
+    );
+    if D == 3 {
+        h.push_str(",momentum_z,angular_momentum_x,angular_momentum_y,angular_momentum_z");
+    } else {
+        h.push_str(",angular_momentum");
+    }
+    h.push_str(",min_distance,penetrations,newton_iterations,friction_iterations,wall_s");
+    h
+}
+
+impl Metrics {
+    /// One CSV row.
+    pub fn csv_row<const D: usize>(&self) -> String {
+        let mut r = format!(
+            "{},{:.9e},{:.6e},{:.12e},{:.12e},{:.12e},{:.12e},{:.12e},{:.12e},{:.12e}",
+            self.step,
+            self.t,
+            self.dt,
+            self.kinetic_energy,
+            self.elastic_energy,
+            self.barrier_energy,
+            self.gravity_energy,
+            self.kinetic_energy + self.elastic_energy + self.barrier_energy + self.gravity_energy,
+            self.momentum[0],
+            self.momentum[1]
+        );
+        if D == 3 {
+            r.push_str(&format!(
+                ",{:.12e},{:.12e},{:.12e},{:.12e}",
+                self.momentum[2],
+                self.angular_momentum[0],
+                self.angular_momentum[1],
+                self.angular_momentum[2]
+            ));
+        } else {
+            r.push_str(&format!(",{:.12e}", self.angular_momentum[2]));
+        }
+        r.push_str(&format!(
+            ",{:.9e},{},{},{},{:.6e}",
+            self.min_distance,
+            self.penetrations,
+            self.newton_iterations,
+            self.friction_iterations,
+            self.wall_s
+        ));
+        r
+    }
+}
+
+fn cross3<const D: usize>(x: &SVector<f64, D>, v: &SVector<f64, D>) -> Vector3<f64> {
+    if D == 2 {
+        Vector3::new(0.0, 0.0, x[0] * v[1] - x[1] * v[0])
+    } else {
+        Vector3::new(
+            x[1] * v[D - 1] - x[D - 1] * v[1],
+            x[D - 1] * v[0] - x[0] * v[D - 1],
+            x[0] * v[1] - x[1] * v[0],
+        )
+    }
+}
+
+fn spin<const D: usize>(b: &SMatrix<f64, D, D>) -> Vector3<f64> {
+    if D == 2 {
+        Vector3::new(0.0, 0.0, b[(1, 0)] - b[(0, 1)])
+    } else {
+        Vector3::new(
+            b[(D - 1, 1)] - b[(1, D - 1)],
+            b[(0, D - 1)] - b[(D - 1, 0)],
+            b[(1, 0)] - b[(0, 1)],
+        )
+    }
+}
+
+impl<const D: usize> World<D> {
+    /// Measure the current state (without solver data: those come from the step report).
+    pub fn measure(&self) -> Metrics {
+        let mut m = Metrics {
+            step: self.step,
+            t: self.time,
+            dt: self.dt,
+            min_distance: f64::INFINITY,
+            ..Default::default()
+        };
+        let mut p = Vector3::zeros();
+        let mut l = Vector3::zeros();
+        let g = self.gravity;
+        if let Some(mpm) = &self.mpm {
+            let apic = matches!(mpm.transfer, crate::world::Transfer::Apic);
+            for q in 0..mpm.x.len() {
+                let (mass, v, x) = (mpm.mass[q], mpm.v[q], mpm.x[q]);
+                m.kinetic_energy += 0.5 * mass * v.norm_squared();
+                m.elastic_energy += mpm.volume[q]
+                    * mpm.bodies[mpm.body[q] as usize]
+                        .material
+                        .energy_density(&mpm.f[q]);
+                m.gravity_energy -= mass * g.dot(&x);
+                for a in 0..D {
+                    p[a] += mass * v[a];
+                }
+                l += cross3(&x, &v) * mass;
+                if apic {
+                    l += spin(&mpm.b[q]) * mass;
+                }
+            }
+        }
+        for body in &self.fem {
+            for vtx in 0..body.x.len() {
+                let (mass, v, x) = (body.mass[vtx], body.v[vtx], body.x[vtx]);
+                m.kinetic_energy += 0.5 * mass * v.norm_squared();
+                m.gravity_energy -= mass * g.dot(&x);
+                for a in 0..D {
+                    p[a] += mass * v[a];
+                }
+                l += cross3(&x, &v) * mass;
+            }
+            if !body.fully_prescribed {
+                m.elastic_energy += body.elastic.energy(&body.x).unwrap_or(f64::INFINITY);
+            }
+        }
+        m.momentum = [p[0], p[1], p[2]];
+        m.angular_momentum = [l[0], l[1], l[2]];
+        // Barrier energy, minimum distance and penetrations, independent of the solver.
+        for pair in &self.pairs {
+            let target = &self.fem[pair.facets_of];
+            let (pts, w): (Vec<SVector<f64, D>>, Vec<f64>) = match &pair.points {
+                Points::Mpm { range } => {
+                    let mpm = self.mpm.as_ref().expect("MPM pair");
+                    (
+                        mpm.x[range.0..range.1].to_vec(),
+                        mpm.weight[range.0..range.1].to_vec(),
+                    )
+                }
+                Points::Fem { body } => {
+                    let b = &self.fem[*body];
+                    (
+                        b.boundary.vertices().iter().map(|&v| b.x[v]).collect(),
+                        b.vertex_weight.clone(),
+                    )
+                }
+            };
+            m.penetrations += inside_elements(&pts, &target.mesh, &target.x).len();
+            let mut c = femp_contact::broad_phase::Candidates::default();
+            femp_contact::broad_phase::candidates_within(
+                &pts,
+                &target.x,
+                &target.facets,
+                pair.potential.barrier.dhat,
+                &mut c,
+            );
+            let mut terms = Vec::new();
+            match pair
+                .potential
+                .collect_terms(&pts, &w, &target.x, &c, &mut terms)
+            {
+                Ok(()) => {
+                    m.barrier_energy += pair.potential.energy(&terms);
+                    for t in &terms {
+                        m.min_distance = m.min_distance.min(t.sq_dist.sqrt());
+                    }
+                }
+                Err(_) => m.min_distance = 0.0,
+            }
+        }
+        m
+    }
+}

@@ -1,0 +1,181 @@
+//! Run output: ParaView frames (`.vtu` + `.pvd`), `metrics.csv` (one row per step, flushed as
+//! written) and `summary.json`.
+
+use std::fs::File;
+use std::io::{BufWriter, Write};
+use std::path::{Path, PathBuf};
+
+use femp_fem::Hyperelastic;
+use femp_fem::material::von_mises;
+use femp_fem::mesh::vtk::{Encoding, Field, Pvd, Vtu};
+use nalgebra::SVector;
+use serde::Serialize;
+
+use crate::error::SimError;
+use crate::metrics::{Metrics, csv_header};
+use crate::world::World;
+
+/// Final state of a run, written to `summary.json`.
+#[derive(Clone, Debug, Default, Serialize)]
+pub struct Summary {
+    /// Scene name.
+    pub scene: String,
+    /// 2 or 3.
+    pub dimension: usize,
+    /// `completed` or `failed`.
+    pub status: String,
+    /// Why it failed.
+    pub error: Option<String>,
+    /// Steps completed.
+    pub steps: usize,
+    /// Simulated time reached (s).
+    pub simulated_time: f64,
+    /// Wall-clock time (s).
+    pub wall_s: f64,
+    /// Frames written.
+    pub frames: usize,
+    /// Newton iterations in total.
+    pub newton_iterations: usize,
+    /// Friction iterations in total.
+    pub friction_iterations: usize,
+    /// Steps whose friction iteration hit its limit.
+    pub friction_unconverged_steps: usize,
+    /// Largest penetration count in any step (BFEMP: must be 0).
+    pub max_penetrations: usize,
+    /// Number of particles.
+    pub particles: usize,
+    /// Number of FEM vertices.
+    pub fem_vertices: usize,
+    /// Seconds in the solver's assembly, symbolic, numeric, solve and line search.
+    pub solver_seconds: [f64; 5],
+}
+
+/// Writes a run's files as it goes.
+pub struct Output {
+    dir: PathBuf,
+    metrics: BufWriter<File>,
+    pvds: Vec<(String, Pvd)>,
+    frames: usize,
+    /// Encoding of frames.
+    pub encoding: Encoding,
+}
+
+fn io(path: &Path) -> impl Fn(std::io::Error) -> SimError + '_ {
+    move |source| SimError::Io {
+        path: path.to_path_buf(),
+        source,
+    }
+}
+
+impl Output {
+    /// Create `dir` (and `dir/frames`) and start `metrics.csv`.
+    pub fn create<const D: usize>(dir: &Path, world: &World<D>) -> Result<Self, SimError> {
+        std::fs::create_dir_all(dir.join("frames")).map_err(io(dir))?;
+        let mpath = dir.join("metrics.csv");
+        let mut metrics = BufWriter::new(File::create(&mpath).map_err(io(&mpath))?);
+        writeln!(metrics, "{}", csv_header::<D>()).map_err(io(&mpath))?;
+        metrics.flush().map_err(io(&mpath))?;
+        let mut pvds = Vec::new();
+        if world.mpm.is_some() {
+            pvds.push((
+                "particles".to_string(),
+                Pvd::new(&dir.join("particles.pvd")),
+            ));
+        }
+        for b in &world.fem {
+            pvds.push((
+                b.name.clone(),
+                Pvd::new(&dir.join(format!("{}.pvd", b.name))),
+            ));
+        }
+        Ok(Self {
+            dir: dir.to_path_buf(),
+            metrics,
+            pvds,
+            frames: 0,
+            encoding: Encoding::Binary,
+        })
+    }
+
+    /// Append one metrics row and flush it.
+    pub fn metrics_row<const D: usize>(&mut self, m: &Metrics) -> Result<(), SimError> {
+        let path = self.dir.join("metrics.csv");
+        writeln!(self.metrics, "{}", m.csv_row::<D>()).map_err(io(&path))?;
+        self.metrics.flush().map_err(io(&path))
+    }
+
+    /// Number of frames written.
+    pub fn frames(&self) -> usize {
+        self.frames
+    }
+
+    /// Write a frame of every body at the world's current time.
+    pub fn frame<const D: usize>(&mut self, world: &World<D>) -> Result<(), SimError> {
+        let k = self.frames;
+        let mut part = 0;
+        let fem_err = |e: femp_fem::FemError| SimError::Build {
+            context: "writing frames".into(),
+            message: e.to_string(),
+        };
+        if let Some(m) = &world.mpm {
+            let path = self
+                .dir
+                .join("frames")
+                .join(format!("particles_{k:06}.vtu"));
+            let det: Vec<f64> = m.f.iter().map(femp_fem::linalg::det).collect();
+            let vm: Vec<f64> = (0..m.x.len())
+                .map(|p| {
+                    let mat = &m.bodies[m.body[p] as usize].material;
+                    von_mises(&mat.first_piola(&m.f[p]), &m.f[p])
+                })
+                .collect();
+            Vtu::points(&m.x)
+                .with_point_field(Field::vector("velocity", &m.v))
+                .with_point_field(Field::scalar("det_F", det))
+                .with_point_field(Field::scalar("von_mises", vm))
+                .with_point_field(Field::scalar(
+                    "body",
+                    m.body.iter().map(|&b| b as f64).collect(),
+                ))
+                .write(&path, self.encoding)
+                .map_err(fem_err)?;
+            self.pvds[part]
+                .1
+                .add(world.time, &path, 0)
+                .map_err(fem_err)?;
+            part += 1;
+        }
+        for b in &world.fem {
+            let path = self
+                .dir
+                .join("frames")
+                .join(format!("{}_{k:06}.vtu", b.name));
+            let disp: Vec<SVector<f64, D>> =
+                b.x.iter().zip(&b.initial).map(|(x, x0)| x - x0).collect();
+            Vtu::from_mesh(&b.mesh, &b.x)
+                .with_point_field(Field::vector("displacement", &disp))
+                .with_point_field(Field::vector("velocity", &b.v))
+                .with_cell_field(Field::scalar("von_mises", b.elastic.von_mises(&b.x)))
+                .with_cell_field(Field::scalar("det_F", b.elastic.det_f(&b.x)))
+                .write(&path, self.encoding)
+                .map_err(fem_err)?;
+            self.pvds[part]
+                .1
+                .add(world.time, &path, 0)
+                .map_err(fem_err)?;
+            part += 1;
+        }
+        self.frames += 1;
+        Ok(())
+    }
+
+    /// Write `summary.json`.
+    pub fn summary(&self, s: &Summary) -> Result<(), SimError> {
+        let path = self.dir.join("summary.json");
+        let text = serde_json::to_string_pretty(s).map_err(|e| SimError::Build {
+            context: "summary.json".into(),
+            message: e.to_string(),
+        })?;
+        std::fs::write(&path, text).map_err(io(&path))
+    }
+}

@@ -1,0 +1,570 @@
+//! Scenes: JSON files (format in `docs/scenes.md`, types in [`spec`]), loaded with field paths
+//! in every error and validated before anything is built.
+
+pub mod spec;
+
+use std::path::{Path, PathBuf};
+
+use femp_fem::{Lame, material::check_density};
+pub use spec::*;
+
+use crate::error::{SimError, invalid};
+
+/// A loaded and validated scene, with the directory relative paths resolve against.
+#[derive(Debug, Clone)]
+pub struct Scene {
+    /// The parsed file.
+    pub spec: SceneSpec,
+    /// Directory of the scene file.
+    pub base_dir: PathBuf,
+    /// Name (the `name` field or the file stem).
+    pub name: String,
+}
+
+/// Read, parse and validate a scene file.
+pub fn load(path: &Path) -> Result<Scene, SimError> {
+    let text = std::fs::read_to_string(path).map_err(|source| SimError::Io {
+        path: path.to_path_buf(),
+        source,
+    })?;
+    let stem = path
+        .file_stem()
+        .map(|s| s.to_string_lossy().into_owned())
+        .unwrap_or_else(|| "scene".into());
+    let base = path.parent().map(Path::to_path_buf).unwrap_or_default();
+    parse(&text, &path.display().to_string(), base, &stem)
+}
+
+/// Parse and validate scene text (`file` names it in errors).
+pub fn parse(
+    text: &str,
+    file: &str,
+    base_dir: PathBuf,
+    default_name: &str,
+) -> Result<Scene, SimError> {
+    let de = &mut serde_json::Deserializer::from_str(text);
+    let spec: SceneSpec = serde_path_to_error::deserialize(de).map_err(|e| {
+        let field = e.path().to_string();
+        SimError::SceneFormat {
+            file: file.to_string(),
+            field: if field == "." { "(root)".into() } else { field },
+            message: e.into_inner().to_string(),
+        }
+    })?;
+    validate(&spec)?;
+    let name = spec
+        .name
+        .clone()
+        .unwrap_or_else(|| default_name.to_string());
+    Ok(Scene {
+        spec,
+        base_dir,
+        name,
+    })
+}
+
+fn vec_len(field: &str, v: &[f64], d: usize) -> Result<(), SimError> {
+    if v.len() != d {
+        return Err(invalid(
+            field,
+            format!("has {} components; the scene is {d}D", v.len()),
+        ));
+    }
+    if let Some(x) = v.iter().find(|x| !x.is_finite()) {
+        return Err(invalid(field, format!("component {x} is not finite")));
+    }
+    Ok(())
+}
+
+fn positive(field: &str, x: f64) -> Result<(), SimError> {
+    if x > 0.0 && x.is_finite() {
+        Ok(())
+    } else {
+        Err(invalid(field, format!("{x} must be positive")))
+    }
+}
+
+fn material(field: &str, m: &MaterialSpec) -> Result<(), SimError> {
+    Lame::from_young_poisson(m.youngs_modulus, m.nu).map_err(|e| match e {
+        femp_fem::FemError::BadMaterial {
+            parameter,
+            value,
+            requirement,
+        } => invalid(
+            format!("{field}.{parameter}"),
+            format!("{value}: {requirement}"),
+        ),
+        other => invalid(field, other.to_string()),
+    })?;
+    check_density(m.rho).map_err(|_| {
+        invalid(
+            format!("{field}.rho"),
+            format!("{} must be positive", m.rho),
+        )
+    })?;
+    Ok(())
+}
+
+fn angular(field: &str, a: &AngularSpec, d: usize) -> Result<(), SimError> {
+    match (a, d) {
+        (AngularSpec::Scalar(w), 2) if w.is_finite() => Ok(()),
+        (AngularSpec::Vector(v), 3) => vec_len(field, v, 3),
+        (AngularSpec::Scalar(_), _) => Err(invalid(field, "must be a 3-vector in 3D")),
+        (AngularSpec::Vector(_), _) => Err(invalid(field, "must be a number (about z) in 2D")),
+    }
+}
+
+fn transform(field: &str, t: &TransformSpec, d: usize) -> Result<(), SimError> {
+    if !t.rotate_deg.is_finite() {
+        return Err(invalid(format!("{field}.rotate_deg"), "must be finite"));
+    }
+    if let Some(a) = &t.axis {
+        if d == 2 {
+            return Err(invalid(
+                format!("{field}.axis"),
+                "2D rotations are about z; remove `axis`",
+            ));
+        }
+        vec_len(&format!("{field}.axis"), a, 3)?;
+        if a.iter().all(|x| *x == 0.0) {
+            return Err(invalid(format!("{field}.axis"), "must be non-zero"));
+        }
+    }
+    if let Some(a) = &t.about {
+        vec_len(&format!("{field}.about"), a, d)?;
+    }
+    if let Some(a) = &t.translate {
+        vec_len(&format!("{field}.translate"), a, d)?;
+    }
+    Ok(())
+}
+
+fn motion(field: &str, segs: &[MotionSegment], d: usize) -> Result<(), SimError> {
+    let mut last = 0.0;
+    for (k, s) in segs.iter().enumerate() {
+        let f = format!("{field}[{k}]");
+        if !(s.until > last) {
+            return Err(invalid(
+                format!("{f}.until"),
+                format!(
+                    "{} must be after the previous segment's end ({last})",
+                    s.until
+                ),
+            ));
+        }
+        last = s.until;
+        if let Some(v) = &s.velocity {
+            vec_len(&format!("{f}.velocity"), v, d)?;
+        }
+        if let Some(w) = &s.angular_velocity {
+            angular(&format!("{f}.angular_velocity"), w, d)?;
+        }
+        if let Some(c) = &s.center {
+            vec_len(&format!("{f}.center"), c, d)?;
+        }
+    }
+    Ok(())
+}
+
+fn radii(field: &str, r_in: f64, r_out: f64) -> Result<(), SimError> {
+    positive(&format!("{field}.r_in"), r_in)?;
+    if !(r_out > r_in && r_out.is_finite()) {
+        return Err(invalid(
+            format!("{field}.r_out"),
+            format!("{r_out} must exceed r_in = {r_in}"),
+        ));
+    }
+    Ok(())
+}
+
+fn cells(field: &str, c: &[usize], n: usize) -> Result<(), SimError> {
+    if c.len() != n {
+        return Err(invalid(
+            field,
+            format!("needs {n} entries, has {}", c.len()),
+        ));
+    }
+    if c.contains(&0) {
+        return Err(invalid(field, "every entry must be at least 1"));
+    }
+    Ok(())
+}
+
+fn box_corners(field: &str, min: &[f64], max: &[f64], d: usize) -> Result<(), SimError> {
+    vec_len(&format!("{field}.min"), min, d)?;
+    vec_len(&format!("{field}.max"), max, d)?;
+    for a in 0..d {
+        if !(max[a] > min[a]) {
+            return Err(invalid(
+                format!("{field}.max"),
+                format!("component {a} ({}) must exceed min ({})", max[a], min[a]),
+            ));
+        }
+    }
+    Ok(())
+}
+
+/// Check every field of a parsed scene (ranges, lengths, names, consistency).
+pub fn validate(s: &SceneSpec) -> Result<(), SimError> {
+    let d = s.dimension;
+    if d != 2 && d != 3 {
+        return Err(invalid("dimension", format!("{d}: must be 2 or 3")));
+    }
+    if let Some(g) = &s.gravity {
+        vec_len("gravity", g, d)?;
+    }
+    positive("time.dt", s.time.dt)?;
+    positive("time.duration", s.time.duration)?;
+    if let Some(f) = s.time.frame_interval {
+        positive("time.frame_interval", f)?;
+    }
+    positive("solver.tolerance", s.solver.tolerance)?;
+    if s.solver.max_newton_iterations == 0 {
+        return Err(invalid(
+            "solver.max_newton_iterations",
+            "must be at least 1",
+        ));
+    }
+    if s.solver.max_friction_iterations == 0 {
+        return Err(invalid(
+            "solver.max_friction_iterations",
+            "must be at least 1",
+        ));
+    }
+    if s.bodies.is_empty() {
+        return Err(invalid("bodies", "the scene has no bodies"));
+    }
+    let mut names: Vec<&str> = Vec::new();
+    let mut any_mpm = false;
+    let mut n_fem = 0;
+    for (i, b) in s.bodies.iter().enumerate() {
+        let f = format!("bodies[{i}]");
+        let name = match b {
+            BodySpec::Mpm { name, .. } | BodySpec::Fem { name, .. } => name.as_str(),
+        };
+        if name.is_empty() {
+            return Err(invalid(format!("{f}.name"), "must not be empty"));
+        }
+        if names.contains(&name) {
+            return Err(invalid(
+                format!("{f}.name"),
+                format!("`{name}` is used by another body"),
+            ));
+        }
+        names.push(name);
+        match b {
+            BodySpec::Mpm {
+                shape,
+                particles_per_cell,
+                material: m,
+                velocity,
+                angular_velocity,
+                ..
+            } => {
+                any_mpm = true;
+                material(&format!("{f}.material"), m)?;
+                if let Some(v) = velocity {
+                    vec_len(&format!("{f}.velocity"), v, d)?;
+                }
+                if let Some(w) = angular_velocity {
+                    angular(&format!("{f}.angular_velocity"), w, d)?;
+                }
+                if let Some(ppc) = particles_per_cell {
+                    let k = (*ppc as f64).powf(1.0 / d as f64).round() as usize;
+                    if *ppc == 0 || k.pow(d as u32) != *ppc {
+                        return Err(invalid(
+                            format!("{f}.particles_per_cell"),
+                            format!(
+                                "{ppc} must be a perfect {} (particles are placed on a regular sub-grid)",
+                                if d == 2 { "square" } else { "cube" }
+                            ),
+                        ));
+                    }
+                }
+                let sf = format!("{f}.shape");
+                match shape {
+                    ShapeSpec::Box {
+                        min,
+                        max,
+                        transform: t,
+                    } => {
+                        box_corners(&sf, min, max, d)?;
+                        if let Some(t) = t {
+                            transform(&format!("{sf}.transform"), t, d)?;
+                        }
+                    }
+                    ShapeSpec::Disk { center, radius } => {
+                        vec_len(&format!("{sf}.center"), center, d)?;
+                        positive(&format!("{sf}.radius"), *radius)?;
+                    }
+                    ShapeSpec::Ring {
+                        center,
+                        r_in,
+                        r_out,
+                    }
+                    | ShapeSpec::SemicircularRing {
+                        center,
+                        r_in,
+                        r_out,
+                    } => {
+                        if d != 2 {
+                            return Err(invalid(sf, "rings are 2D shapes"));
+                        }
+                        vec_len(&format!("{sf}.center"), center, d)?;
+                        radii(&sf, *r_in, *r_out)?;
+                    }
+                    ShapeSpec::Mesh { file } => {
+                        if file.is_empty() {
+                            return Err(invalid(format!("{sf}.file"), "must name a mesh file"));
+                        }
+                    }
+                }
+            }
+            BodySpec::Fem {
+                mesh,
+                transform: t,
+                material: m,
+                velocity,
+                angular_velocity,
+                prescribed,
+                ..
+            } => {
+                n_fem += 1;
+                material(&format!("{f}.material"), m)?;
+                if let Some(v) = velocity {
+                    vec_len(&format!("{f}.velocity"), v, d)?;
+                }
+                if let Some(w) = angular_velocity {
+                    angular(&format!("{f}.angular_velocity"), w, d)?;
+                }
+                if let Some(t) = t {
+                    transform(&format!("{f}.transform"), t, d)?;
+                }
+                let mf = format!("{f}.mesh");
+                match mesh {
+                    MeshSpec::Rectangle { min, max, cells: c } => {
+                        if d != 2 {
+                            return Err(invalid(mf, "`rectangle` is 2D; use `cuboid`"));
+                        }
+                        box_corners(&mf, min, max, d)?;
+                        cells(&format!("{mf}.cells"), c, 2)?;
+                    }
+                    MeshSpec::Cuboid { min, max, cells: c } => {
+                        if d != 3 {
+                            return Err(invalid(mf, "`cuboid` is 3D; use `rectangle`"));
+                        }
+                        box_corners(&mf, min, max, d)?;
+                        cells(&format!("{mf}.cells"), c, 3)?;
+                    }
+                    MeshSpec::Disk {
+                        center,
+                        radius,
+                        rings,
+                    } => {
+                        if d != 2 {
+                            return Err(invalid(mf, "`disk` meshes are 2D"));
+                        }
+                        vec_len(&format!("{mf}.center"), center, d)?;
+                        positive(&format!("{mf}.radius"), *radius)?;
+                        if *rings == 0 {
+                            return Err(invalid(format!("{mf}.rings"), "must be at least 1"));
+                        }
+                    }
+                    MeshSpec::Ring {
+                        center,
+                        r_in,
+                        r_out,
+                        cells: c,
+                    }
+                    | MeshSpec::SemicircularRing {
+                        center,
+                        r_in,
+                        r_out,
+                        cells: c,
+                    } => {
+                        if d != 2 {
+                            return Err(invalid(mf, "ring meshes are 2D"));
+                        }
+                        vec_len(&format!("{mf}.center"), center, d)?;
+                        radii(&mf, *r_in, *r_out)?;
+                        cells(&format!("{mf}.cells"), c, 2)?;
+                    }
+                    MeshSpec::CosineStrip {
+                        wavelength,
+                        x0,
+                        x1,
+                        thickness,
+                        cells: c,
+                        ..
+                    } => {
+                        if d != 2 {
+                            return Err(invalid(mf, "`cosine_strip` is 2D"));
+                        }
+                        positive(&format!("{mf}.wavelength"), *wavelength)?;
+                        if !(x1 > x0) {
+                            return Err(invalid(
+                                format!("{mf}.x1"),
+                                format!("{x1} must exceed x0 = {x0}"),
+                            ));
+                        }
+                        if !(*thickness != 0.0 && thickness.is_finite()) {
+                            return Err(invalid(format!("{mf}.thickness"), "must be non-zero"));
+                        }
+                        cells(&format!("{mf}.cells"), c, 2)?;
+                    }
+                    MeshSpec::File { path } => {
+                        if path.is_empty() {
+                            return Err(invalid(format!("{mf}.path"), "must name a mesh file"));
+                        }
+                    }
+                }
+                for (k, p) in prescribed.iter().enumerate() {
+                    let pf = format!("{f}.prescribed[{k}]");
+                    match &p.vertices {
+                        VertexSelector::Below { axis, value }
+                        | VertexSelector::Above { axis, value } => {
+                            if *axis >= d {
+                                return Err(invalid(
+                                    format!("{pf}.vertices"),
+                                    format!("axis {axis} does not exist in {d}D"),
+                                ));
+                            }
+                            if !value.is_finite() {
+                                return Err(invalid(
+                                    format!("{pf}.vertices"),
+                                    "threshold must be finite",
+                                ));
+                            }
+                        }
+                        VertexSelector::List(l) if l.is_empty() => {
+                            return Err(invalid(format!("{pf}.vertices"), "the list is empty"));
+                        }
+                        _ => {}
+                    }
+                    motion(&format!("{pf}.motion"), &p.motion, d)?;
+                }
+            }
+        }
+    }
+    if any_mpm {
+        let Some(m) = &s.mpm else {
+            return Err(invalid(
+                "mpm",
+                "the scene has MPM bodies but no `mpm` section (grid_spacing)",
+            ));
+        };
+        positive("mpm.grid_spacing", m.grid_spacing)?;
+        if !(0.0..=1.0).contains(&m.flip_ratio) {
+            return Err(invalid(
+                "mpm.flip_ratio",
+                format!("{} must be in [0, 1]", m.flip_ratio),
+            ));
+        }
+    }
+    let needs_contact = (any_mpm && n_fem > 0) || n_fem > 1;
+    match &s.contact {
+        Some(c) => {
+            positive("contact.dhat", c.dhat)?;
+            positive("contact.kappa", c.kappa)?;
+            if !(c.friction >= 0.0 && c.friction.is_finite()) {
+                return Err(invalid(
+                    "contact.friction",
+                    format!("{} must be non-negative", c.friction),
+                ));
+            }
+            positive("contact.eps_v", c.eps_v)?;
+            for (k, p) in c.pairs.iter().enumerate() {
+                let pf = format!("contact.pairs[{k}]");
+                for (j, b) in p.bodies.iter().enumerate() {
+                    if !names.contains(&b.as_str()) {
+                        return Err(invalid(
+                            format!("{pf}.bodies[{j}]"),
+                            format!("no body is called `{b}`"),
+                        ));
+                    }
+                }
+                if p.bodies[0] == p.bodies[1] {
+                    return Err(invalid(
+                        format!("{pf}.bodies"),
+                        "a pair needs two different bodies",
+                    ));
+                }
+                if let Some(x) = p.dhat {
+                    positive(&format!("{pf}.dhat"), x)?;
+                }
+                if let Some(x) = p.kappa {
+                    positive(&format!("{pf}.kappa"), x)?;
+                }
+                if let Some(x) = p.friction
+                    && !(x >= 0.0 && x.is_finite())
+                {
+                    return Err(invalid(
+                        format!("{pf}.friction"),
+                        format!("{x} must be non-negative"),
+                    ));
+                }
+                if let Some(x) = p.eps_v {
+                    positive(&format!("{pf}.eps_v"), x)?;
+                }
+            }
+        }
+        None if needs_contact => {
+            return Err(invalid(
+                "contact",
+                "the scene has bodies that can touch but no `contact` section (dhat, kappa)",
+            ));
+        }
+        None => {}
+    }
+    for (k, b) in s.boundaries.iter().enumerate() {
+        let bf = format!("boundaries[{k}]");
+        if !any_mpm {
+            return Err(invalid(
+                bf,
+                "level-set boundaries act on the MPM grid, and the scene has no MPM body",
+            ));
+        }
+        match &b.shape {
+            BoundaryShape::HalfPlane { point, normal } => {
+                vec_len(&format!("{bf}.shape.point"), point, d)?;
+                vec_len(&format!("{bf}.shape.normal"), normal, d)?;
+                if normal.iter().all(|x| *x == 0.0) {
+                    return Err(invalid(format!("{bf}.shape.normal"), "must be non-zero"));
+                }
+            }
+            BoundaryShape::Cosine {
+                wavelength,
+                amplitude,
+                offset,
+                ..
+            } => {
+                if d != 2 {
+                    return Err(invalid(format!("{bf}.shape"), "`cosine` boundaries are 2D"));
+                }
+                positive(&format!("{bf}.shape.wavelength"), *wavelength)?;
+                if !amplitude.is_finite() || !offset.is_finite() {
+                    return Err(invalid(
+                        format!("{bf}.shape"),
+                        "amplitude and offset must be finite",
+                    ));
+                }
+            }
+        }
+        motion(&format!("{bf}.motion"), &b.motion, d)?;
+        for (j, s) in b.motion.iter().enumerate() {
+            if s.angular_velocity.is_some() {
+                return Err(invalid(
+                    format!("{bf}.motion[{j}].angular_velocity"),
+                    "level-set boundaries only translate",
+                ));
+            }
+        }
+    }
+    if s.method == Method::Augury && any_mpm {
+        return Err(invalid(
+            "method",
+            "`augury` simulates FEM bodies only; MPM bodies need `bfemp`",
+        ));
+    }
+    Ok(())
+}

@@ -1,0 +1,505 @@
+//! The scene file format: serde types mirroring the JSON, field by field (documented in
+//! `docs/scenes.md`). Unknown fields are errors. Vectors are plain arrays whose length must
+//! equal the scene's dimension (checked in [`super::validate`]).
+
+use serde::Deserialize;
+
+/// A whole scene file.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SceneSpec {
+    /// Name (defaults to the file stem).
+    #[serde(default)]
+    pub name: Option<String>,
+    /// 2 or 3.
+    pub dimension: usize,
+    /// Which method simulates the scene.
+    #[serde(default)]
+    pub method: Method,
+    /// Gravitational acceleration (m/s²), one entry per axis. Default zero.
+    #[serde(default)]
+    pub gravity: Option<Vec<f64>>,
+    /// Time stepping.
+    pub time: TimeSpec,
+    /// Newton and friction iteration settings.
+    #[serde(default)]
+    pub solver: SolverSpec,
+    /// MPM grid and transfer (required if any body is MPM).
+    #[serde(default)]
+    pub mpm: Option<MpmSpec>,
+    /// The bodies.
+    pub bodies: Vec<BodySpec>,
+    /// Contact parameters (required if the scene has both MPM and FEM bodies, or several FEM
+    /// bodies).
+    #[serde(default)]
+    pub contact: Option<ContactSpec>,
+    /// Level-set boundaries acting on the MPM grid.
+    #[serde(default)]
+    pub boundaries: Vec<BoundarySpec>,
+}
+
+/// The simulation method.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Method {
+    /// Implicit MPM–FEM coupling through barrier contact.
+    #[default]
+    Bfemp,
+    /// Explicit FEM with APIC augury contact.
+    Augury,
+}
+
+/// Time stepping.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct TimeSpec {
+    /// Time step Δt (s).
+    pub dt: f64,
+    /// Simulated duration (s).
+    pub duration: f64,
+    /// Time integrator.
+    #[serde(default)]
+    pub integrator: IntegratorSpec,
+    /// Seconds between output frames (default: every step).
+    #[serde(default)]
+    pub frame_interval: Option<f64>,
+}
+
+/// Integrator choice.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum IntegratorSpec {
+    /// Backward Euler.
+    #[default]
+    BackwardEuler,
+    /// Newmark (trapezoidal).
+    Newmark,
+}
+
+/// Solver settings.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct SolverSpec {
+    /// Newton tolerance ε_d on ‖p‖∞/Δt (m/s).
+    pub tolerance: f64,
+    /// Newton iteration limit per solve.
+    pub max_newton_iterations: usize,
+    /// Friction (lagging) iteration limit per step.
+    pub max_friction_iterations: usize,
+}
+
+impl Default for SolverSpec {
+    fn default() -> Self {
+        Self {
+            tolerance: 1e-4,
+            max_newton_iterations: 100,
+            max_friction_iterations: 20,
+        }
+    }
+}
+
+/// MPM settings shared by all MPM bodies.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct MpmSpec {
+    /// Grid spacing h (m).
+    pub grid_spacing: f64,
+    /// Particle–grid transfer.
+    #[serde(default)]
+    pub transfer: TransferSpec,
+    /// FLIP fraction for `"flip"` (1 = pure FLIP).
+    #[serde(default = "one")]
+    pub flip_ratio: f64,
+}
+
+fn one() -> f64 {
+    1.0
+}
+
+/// Particle–grid transfer.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum TransferSpec {
+    /// Affine particle-in-cell.
+    #[default]
+    Apic,
+    /// Particle-in-cell.
+    Pic,
+    /// Fluid-implicit-particle (with `flip_ratio`).
+    Flip,
+}
+
+/// A material.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct MaterialSpec {
+    /// Constitutive model.
+    #[serde(default)]
+    pub model: ModelSpec,
+    /// Young's modulus E (Pa).
+    #[serde(rename = "E")]
+    pub youngs_modulus: f64,
+    /// Poisson's ratio ν.
+    pub nu: f64,
+    /// Density ρ (kg/m³ in 3D, kg/m² in 2D).
+    pub rho: f64,
+}
+
+/// Constitutive model.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum ModelSpec {
+    /// Compressible neo-Hookean.
+    #[default]
+    NeoHookean,
+    /// Small-strain linear elasticity.
+    Linear,
+}
+
+/// Initial angular velocity: a scalar in 2D (about z), a vector in 3D.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(untagged)]
+pub enum AngularSpec {
+    /// 2D.
+    Scalar(f64),
+    /// 3D.
+    Vector(Vec<f64>),
+}
+
+/// A rigid placement applied to a generated shape or mesh: rotate about `about` (default: the
+/// origin), then translate.
+#[derive(Debug, Clone, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct TransformSpec {
+    /// Rotation angle in degrees (2D: counter-clockwise; 3D: about `axis`).
+    #[serde(default)]
+    pub rotate_deg: f64,
+    /// 3D rotation axis (default z).
+    #[serde(default)]
+    pub axis: Option<Vec<f64>>,
+    /// Rotation centre (default origin).
+    #[serde(default)]
+    pub about: Option<Vec<f64>>,
+    /// Translation.
+    #[serde(default)]
+    pub translate: Option<Vec<f64>>,
+}
+
+/// A body.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(tag = "kind", rename_all = "snake_case", deny_unknown_fields)]
+pub enum BodySpec {
+    /// Material points on the background grid.
+    Mpm {
+        /// Unique name.
+        name: String,
+        /// Region filled with particles.
+        shape: ShapeSpec,
+        /// Particles per grid cell (a perfect square in 2D, cube in 3D). Default 4 / 8.
+        #[serde(default)]
+        particles_per_cell: Option<usize>,
+        /// Material.
+        material: MaterialSpec,
+        /// Initial linear velocity.
+        #[serde(default)]
+        velocity: Option<Vec<f64>>,
+        /// Initial angular velocity about the body's centre of mass.
+        #[serde(default)]
+        angular_velocity: Option<AngularSpec>,
+    },
+    /// A finite-element mesh.
+    Fem {
+        /// Unique name.
+        name: String,
+        /// The mesh.
+        mesh: MeshSpec,
+        /// Placement of the mesh.
+        #[serde(default)]
+        transform: Option<TransformSpec>,
+        /// Material.
+        material: MaterialSpec,
+        /// Initial linear velocity.
+        #[serde(default)]
+        velocity: Option<Vec<f64>>,
+        /// Initial angular velocity about the body's centre of mass.
+        #[serde(default)]
+        angular_velocity: Option<AngularSpec>,
+        /// Vertex sets with prescribed motion.
+        #[serde(default)]
+        prescribed: Vec<PrescribedSpec>,
+    },
+}
+
+/// An MPM region.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(rename_all = "snake_case", deny_unknown_fields)]
+pub enum ShapeSpec {
+    /// Axis-aligned box `[min, max]` (before `transform`).
+    Box {
+        /// Lower corner.
+        min: Vec<f64>,
+        /// Upper corner.
+        max: Vec<f64>,
+        /// Optional placement.
+        #[serde(default)]
+        transform: Option<TransformSpec>,
+    },
+    /// Disk (2D) or ball (3D).
+    Disk {
+        /// Centre.
+        center: Vec<f64>,
+        /// Radius.
+        radius: f64,
+    },
+    /// Annulus (2D).
+    Ring {
+        /// Centre.
+        center: Vec<f64>,
+        /// Inner radius.
+        r_in: f64,
+        /// Outer radius.
+        r_out: f64,
+    },
+    /// Upper half annulus (2D).
+    SemicircularRing {
+        /// Centre.
+        center: Vec<f64>,
+        /// Inner radius.
+        r_in: f64,
+        /// Outer radius.
+        r_out: f64,
+    },
+    /// The inside of a mesh file's cells.
+    Mesh {
+        /// Gmsh file.
+        file: String,
+    },
+}
+
+/// A FEM mesh.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(rename_all = "snake_case", deny_unknown_fields)]
+pub enum MeshSpec {
+    /// Rectangle with `cells = [nx, ny]`.
+    Rectangle {
+        /// Lower corner.
+        min: Vec<f64>,
+        /// Upper corner.
+        max: Vec<f64>,
+        /// Cells per axis.
+        cells: Vec<usize>,
+    },
+    /// Box with `cells = [nx, ny, nz]`.
+    Cuboid {
+        /// Lower corner.
+        min: Vec<f64>,
+        /// Upper corner.
+        max: Vec<f64>,
+        /// Cells per axis.
+        cells: Vec<usize>,
+    },
+    /// Disk with `rings` rings.
+    Disk {
+        /// Centre.
+        center: Vec<f64>,
+        /// Radius.
+        radius: f64,
+        /// Rings.
+        rings: usize,
+    },
+    /// Annulus with `cells = [n_r, n_theta]`.
+    Ring {
+        /// Centre.
+        center: Vec<f64>,
+        /// Inner radius.
+        r_in: f64,
+        /// Outer radius.
+        r_out: f64,
+        /// Cells across and around.
+        cells: Vec<usize>,
+    },
+    /// Upper half annulus with `cells = [n_r, n_theta]`.
+    SemicircularRing {
+        /// Centre.
+        center: Vec<f64>,
+        /// Inner radius.
+        r_in: f64,
+        /// Outer radius.
+        r_out: f64,
+        /// Cells across and along.
+        cells: Vec<usize>,
+    },
+    /// Band of thickness `thickness` along `y = offset + amplitude cos(2π x / wavelength)` for
+    /// `x ∈ [x0, x1]` (negative thickness: below the curve).
+    CosineStrip {
+        /// Amplitude (m).
+        amplitude: f64,
+        /// Wavelength (m).
+        wavelength: f64,
+        /// Mean height (m).
+        offset: f64,
+        /// Start of the x range.
+        x0: f64,
+        /// End of the x range.
+        x1: f64,
+        /// Thickness (signed).
+        thickness: f64,
+        /// Cells along and across.
+        cells: Vec<usize>,
+    },
+    /// A Gmsh `.msh` file (path relative to the scene file).
+    File {
+        /// Path.
+        path: String,
+    },
+}
+
+/// Vertices with prescribed motion.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct PrescribedSpec {
+    /// Which vertices.
+    pub vertices: VertexSelector,
+    /// Piecewise-constant rigid velocities; after the last segment the vertices stay put.
+    pub motion: Vec<MotionSegment>,
+}
+
+/// A vertex set.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(rename_all = "snake_case", deny_unknown_fields)]
+pub enum VertexSelector {
+    /// Every vertex (the body becomes a moving boundary, BFEMP §4.4).
+    All,
+    /// Vertices with coordinate `axis` below `value`.
+    Below {
+        /// Axis (0 = x).
+        axis: usize,
+        /// Threshold.
+        value: f64,
+    },
+    /// Vertices with coordinate `axis` above `value`.
+    Above {
+        /// Axis.
+        axis: usize,
+        /// Threshold.
+        value: f64,
+    },
+    /// Explicit vertex indices.
+    List(Vec<usize>),
+}
+
+/// One segment of a motion script.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct MotionSegment {
+    /// End time of the segment (s).
+    pub until: f64,
+    /// Linear velocity (m/s).
+    #[serde(default)]
+    pub velocity: Option<Vec<f64>>,
+    /// Angular velocity (rad/s; scalar in 2D, vector in 3D).
+    #[serde(default)]
+    pub angular_velocity: Option<AngularSpec>,
+    /// Rotation centre at the start of the segment (default: centroid of the set at t = 0,
+    /// carried along by the translation).
+    #[serde(default)]
+    pub center: Option<Vec<f64>>,
+}
+
+/// Contact settings.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ContactSpec {
+    /// Activation distance d̂ (m).
+    pub dhat: f64,
+    /// Barrier stiffness κ (Pa).
+    pub kappa: f64,
+    /// Coulomb friction coefficient μ (default 0).
+    #[serde(default)]
+    pub friction: f64,
+    /// Static friction velocity threshold ε_v (m/s, default 1e-3).
+    #[serde(default = "default_eps_v")]
+    pub eps_v: f64,
+    /// Per-pair overrides.
+    #[serde(default)]
+    pub pairs: Vec<PairSpec>,
+}
+
+fn default_eps_v() -> f64 {
+    1e-3
+}
+
+/// Overrides for one pair of bodies.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct PairSpec {
+    /// The two body names.
+    pub bodies: [String; 2],
+    /// Whether the pair interacts at all (default true).
+    #[serde(default = "yes")]
+    pub enabled: bool,
+    /// d̂ override.
+    #[serde(default)]
+    pub dhat: Option<f64>,
+    /// κ override.
+    #[serde(default)]
+    pub kappa: Option<f64>,
+    /// μ override.
+    #[serde(default)]
+    pub friction: Option<f64>,
+    /// ε_v override.
+    #[serde(default)]
+    pub eps_v: Option<f64>,
+}
+
+fn yes() -> bool {
+    true
+}
+
+/// A level-set boundary on the MPM grid.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct BoundarySpec {
+    /// Geometry: the solid side is where the level set is negative.
+    pub shape: BoundaryShape,
+    /// No-slip (grid velocity = boundary velocity) or slip (zero normal relative velocity).
+    pub condition: BoundaryCondition,
+    /// Optional motion of the boundary (same script as prescribed vertices; translation only).
+    #[serde(default)]
+    pub motion: Vec<MotionSegment>,
+}
+
+/// Level-set geometry.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(rename_all = "snake_case", deny_unknown_fields)]
+pub enum BoundaryShape {
+    /// The half-space behind a plane: solid where `(x − point)·normal < 0`.
+    HalfPlane {
+        /// A point on the plane.
+        point: Vec<f64>,
+        /// Normal pointing into the free region.
+        normal: Vec<f64>,
+    },
+    /// 2D: solid above (`solid_above = true`) or below the curve
+    /// `y = offset + amplitude cos(2π x / wavelength)`.
+    Cosine {
+        /// Amplitude.
+        amplitude: f64,
+        /// Wavelength.
+        wavelength: f64,
+        /// Mean height.
+        offset: f64,
+        /// Which side is solid.
+        solid_above: bool,
+    },
+}
+
+/// Boundary condition on grid nodes inside a level set.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum BoundaryCondition {
+    /// Node velocity = boundary velocity.
+    NoSlip,
+    /// Normal component of the relative velocity = 0.
+    Slip,
+}

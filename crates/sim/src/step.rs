@@ -1,0 +1,335 @@
+//! One BFEMP time step (Algorithm 1): particle-to-grid, the lagged-friction loop around the
+//! incremental-potential minimisation (Algorithm 2, [`femp_solver::Newton`]), the velocity update,
+//! grid-to-particle and advection.
+
+use femp_kernels::transfer;
+use femp_solver::{NewtonParams, Ordering, SolveStats, Threads};
+use nalgebra::{SMatrix, SVector};
+
+use crate::error::SimError;
+use crate::objective::{Penalty, StepObjective};
+use crate::scene::BoundaryCondition;
+use crate::world::{Transfer, World};
+
+/// What a step did.
+#[derive(Clone, Debug, Default)]
+pub struct StepReport {
+    /// Newton iterations over all friction iterations.
+    pub newton_iterations: usize,
+    /// Friction (lagging) iterations (1 when there is no friction).
+    pub friction_iterations: usize,
+    /// Whether the friction iteration converged (always true without friction).
+    pub friction_converged: bool,
+    /// Active contact terms at the end of the step.
+    pub contact_terms: usize,
+    /// Smallest particle/vertex–boundary distance among active terms (∞ if none).
+    pub min_distance: f64,
+    /// Solver statistics summed over the step's solves.
+    pub stats: SolveStats,
+}
+
+fn add_stats(acc: &mut SolveStats, s: &SolveStats) {
+    acc.iterations += s.iterations;
+    acc.backtracks += s.backtracks;
+    acc.limited_by_ccd += s.limited_by_ccd;
+    acc.limited_by_det_f += s.limited_by_det_f;
+    acc.limited_by_other += s.limited_by_other;
+    acc.final_residual = s.final_residual;
+    acc.final_energy = s.final_energy;
+    acc.regularizations += s.regularizations;
+    acc.roundoff_stops += s.roundoff_stops;
+    acc.symbolic_analyses += s.symbolic_analyses;
+    acc.assembly_s += s.assembly_s;
+    acc.symbolic_s += s.symbolic_s;
+    acc.numeric_s += s.numeric_s;
+    acc.solve_s += s.solve_s;
+    acc.line_search_s += s.line_search_s;
+}
+
+impl<const D: usize> World<D> {
+    /// Advance by one time step.
+    pub fn step(&mut self) -> Result<StepReport, SimError> {
+        let dt = self.dt;
+        let t1 = self.time + dt;
+        let fail = |world: &World<D>, message: String| SimError::StepFailed {
+            step: world.step,
+            time: world.time,
+            message,
+        };
+
+        // 1. Particle-to-grid.
+        let mut n_grid = 0;
+        let mut grid_m: Vec<f64> = Vec::new();
+        let mut grid_v: Vec<SVector<f64, D>> = Vec::new();
+        let mut grid_a: Vec<SVector<f64, D>> = Vec::new();
+        let mut grid_x: Vec<SVector<f64, D>> = Vec::new();
+        if let Some(m) = self.mpm.as_mut() {
+            m.stencils.rebuild(&m.x).map_err(|e| SimError::StepFailed {
+                step: self.step,
+                time: self.time,
+                message: e.to_string(),
+            })?;
+            n_grid = m.stencils.num_nodes();
+            grid_m = vec![0.0; n_grid];
+            grid_v = vec![SVector::zeros(); n_grid];
+            let r = match m.transfer {
+                Transfer::Apic => {
+                    transfer::p2g_apic(&m.stencils, &m.mass, &m.v, &m.b, &mut grid_m, &mut grid_v)
+                }
+                _ => transfer::p2g_pic(&m.stencils, &m.mass, &m.v, &mut grid_m, &mut grid_v),
+            };
+            r.and_then(|_| transfer::normalise(&grid_m, &mut grid_v))
+                .map_err(|e| SimError::StepFailed {
+                    step: self.step,
+                    time: self.time,
+                    message: e.to_string(),
+                })?;
+            grid_a = vec![SVector::zeros(); n_grid];
+            if self.integrator.needs_acceleration() {
+                transfer::p2g_vector(&m.stencils, &m.mass, &m.a, &mut grid_a)
+                    .and_then(|_| transfer::normalise(&grid_m, &mut grid_a))
+                    .map_err(|e| SimError::StepFailed {
+                        step: self.step,
+                        time: self.time,
+                        message: e.to_string(),
+                    })?;
+            }
+            grid_x = (0..n_grid).map(|i| m.stencils.node_position(i)).collect();
+        }
+
+        // 2. DOF layout: grid nodes, then FEM vertices body by body.
+        let mut fem_offset = Vec::with_capacity(self.fem.len());
+        let mut n_dofs = n_grid * D;
+        for b in &self.fem {
+            fem_offset.push(n_dofs);
+            n_dofs += b.x.len() * D;
+        }
+        let mut mass = vec![0.0; n_dofs];
+        let mut x0 = vec![0.0; n_dofs];
+        let mut v0 = vec![0.0; n_dofs];
+        let mut a0 = vec![0.0; n_dofs];
+        let mut fixed = vec![false; n_dofs];
+        let mut target = vec![0.0; n_dofs];
+        let max_m = grid_m.iter().copied().fold(0.0, f64::max);
+        for i in 0..n_grid {
+            for a in 0..D {
+                let d = i * D + a;
+                mass[d] = grid_m[i];
+                x0[d] = grid_x[i][a];
+                v0[d] = grid_v[i][a];
+                a0[d] = grid_a[i][a];
+                // Nodes a particle touches with weight ~0 carry no mass: pin them.
+                if grid_m[i] <= 1e-14 * max_m {
+                    fixed[d] = true;
+                    target[d] = x0[d];
+                }
+            }
+        }
+        for (b, body) in self.fem.iter().enumerate() {
+            for vtx in 0..body.x.len() {
+                for a in 0..D {
+                    let d = fem_offset[b] + vtx * D + a;
+                    mass[d] = body.mass[vtx];
+                    x0[d] = body.x[vtx][a];
+                    v0[d] = body.v[vtx][a];
+                    a0[d] = body.a[vtx][a];
+                }
+            }
+            for (ids, motion) in &body.prescribed {
+                let tf = motion.at(t1);
+                for &vtx in ids {
+                    let p = tf.apply(&body.initial[vtx]);
+                    for a in 0..D {
+                        let d = fem_offset[b] + vtx * D + a;
+                        fixed[d] = true;
+                        target[d] = p[a];
+                    }
+                }
+            }
+        }
+        // Level-set boundaries on grid nodes (at the end-of-step boundary position).
+        let mut penalties: Vec<Penalty<D>> = Vec::new();
+        for ls in &self.boundaries {
+            let vb = ls.velocity(t1 - 0.5 * dt);
+            for i in 0..n_grid {
+                let (phi, n) = ls.eval(&grid_x[i], t1);
+                if phi > 0.0 || fixed[i * D] && fixed[i * D + D - 1] {
+                    continue;
+                }
+                match ls.condition {
+                    BoundaryCondition::NoSlip => {
+                        for a in 0..D {
+                            fixed[i * D + a] = true;
+                            target[i * D + a] = grid_x[i][a] + dt * vb[a];
+                        }
+                    }
+                    BoundaryCondition::Slip => {
+                        let axis = (0..D).find(|&a| (n[a].abs() - 1.0).abs() < 1e-12);
+                        match axis {
+                            Some(a) => {
+                                fixed[i * D + a] = true;
+                                target[i * D + a] = grid_x[i][a] + dt * vb[a];
+                            }
+                            None => penalties.push(Penalty {
+                                node: i,
+                                n,
+                                target: n.dot(&(grid_x[i] + vb * dt)),
+                                k: 1e4 * grid_m[i].max(1e-300),
+                            }),
+                        }
+                    }
+                }
+            }
+        }
+        // Predictor.
+        let mut x_hat = vec![0.0; n_dofs];
+        self.integrator.predictor(dt, &x0, &v0, &a0, &mut x_hat);
+
+        // 3. The friction loop around the minimisation.
+        let params = NewtonParams {
+            tolerance: self.scene.spec.solver.tolerance,
+            dt,
+            max_iterations: self.scene.spec.solver.max_newton_iterations,
+            ordering: if D == 3 && n_dofs > 30_000 {
+                Ordering::NestedDissection { block: D }
+            } else {
+                Ordering::Amd
+            },
+            threads: Threads::Auto,
+            ..Default::default()
+        };
+        let w = self.integrator.weight(dt);
+        let any_friction = self.pairs.iter().any(|p| p.friction.mu > 0.0);
+        let mut report = StepReport {
+            friction_converged: true,
+            ..Default::default()
+        };
+        let mut x = x0.clone();
+        // Start the fixed DOFs where they are; Newton moves them to their targets.
+        let mpm_ref = self.mpm.as_ref();
+        let mut obj = StepObjective::new(
+            mpm_ref,
+            &self.fem,
+            &self.pairs,
+            n_grid,
+            fem_offset.clone(),
+            n_dofs,
+            &mass,
+            &x_hat,
+            &x0,
+            w,
+            self.gravity,
+            &penalties,
+        );
+        if any_friction {
+            obj.lag_friction(&x);
+        }
+        let max_fric = if any_friction {
+            self.scene.spec.solver.max_friction_iterations
+        } else {
+            1
+        };
+        let mut prev = x.clone();
+        for j in 0..max_fric {
+            report.friction_iterations = j + 1;
+            let stats = self
+                .newton
+                .minimize_to(&mut obj, &mut x, &fixed, &target, &params)
+                .map_err(|e| SimError::StepFailed {
+                    step: self.step,
+                    time: self.time,
+                    message: format!(
+                        "{e}{}",
+                        if any_friction {
+                            format!(" (friction iteration {})", j + 1)
+                        } else {
+                            String::new()
+                        }
+                    ),
+                })?;
+            report.newton_iterations += stats.iterations;
+            add_stats(&mut report.stats, &stats);
+            if !any_friction {
+                break;
+            }
+            let change = x
+                .iter()
+                .zip(&prev)
+                .map(|(a, b)| (a - b).abs())
+                .fold(0.0, f64::max)
+                / dt;
+            if j > 0 && change < params.tolerance {
+                break;
+            }
+            if j + 1 == max_fric {
+                report.friction_converged = false;
+            }
+            prev.copy_from_slice(&x);
+            obj.lag_friction(&x);
+        }
+        let (nterms, dmin) = obj.contact_summary(&x);
+        report.contact_terms = nterms;
+        report.min_distance = dmin;
+        drop(obj);
+        if x.iter().any(|v| !v.is_finite()) {
+            return Err(fail(
+                self,
+                "the solution contains non-finite positions".into(),
+            ));
+        }
+
+        // 4. Velocities and accelerations.
+        let mut v1 = v0.clone();
+        let mut a1 = a0.clone();
+        self.integrator.update(dt, &x, &x_hat, &mut v1, &mut a1);
+
+        // 5. Grid-to-particle and advection.
+        if let Some(m) = self.mpm.as_mut() {
+            let st = &m.stencils;
+            let gv1: Vec<SVector<f64, D>> = (0..n_grid)
+                .map(|i| SVector::from_column_slice(&v1[i * D..i * D + D]))
+                .collect();
+            let gu: Vec<SVector<f64, D>> = (0..n_grid)
+                .map(|i| SVector::from_column_slice(&x[i * D..i * D + D]) - grid_x[i])
+                .collect();
+            let res = match m.transfer {
+                Transfer::Apic => transfer::g2p_apic(st, &gv1, Some(&gu), &mut m.v, &mut m.b),
+                Transfer::Pic => transfer::g2p_pic(st, &gv1, &mut m.v),
+                Transfer::Flip(r) => transfer::g2p_flip(st, &gv1, &grid_v, r, &mut m.v),
+            };
+            res.and_then(|_| transfer::advect(st, &gu, &mut m.x, Some(&mut m.f)))
+                .map_err(|e| SimError::StepFailed {
+                    step: self.step,
+                    time: self.time,
+                    message: e.to_string(),
+                })?;
+            if self.integrator.needs_acceleration() {
+                let ga1: Vec<SVector<f64, D>> = (0..n_grid)
+                    .map(|i| SVector::from_column_slice(&a1[i * D..i * D + D]))
+                    .collect();
+                transfer::interpolate(st, &ga1, &mut m.a).map_err(|e| SimError::StepFailed {
+                    step: self.step,
+                    time: self.time,
+                    message: e.to_string(),
+                })?;
+            }
+            if let Some(bad) =
+                m.f.iter()
+                    .position(|f: &SMatrix<f64, D, D>| !(femp_fem::linalg::det(f) > 0.0))
+            {
+                return Err(fail(self, format!("particle {bad} inverted (det F ≤ 0)")));
+            }
+        }
+        for (b, body) in self.fem.iter_mut().enumerate() {
+            for vtx in 0..body.x.len() {
+                let d = fem_offset[b] + vtx * D;
+                body.x[vtx] = SVector::from_column_slice(&x[d..d + D]);
+                body.v[vtx] = SVector::from_column_slice(&v1[d..d + D]);
+                body.a[vtx] = SVector::from_column_slice(&a1[d..d + D]);
+            }
+        }
+        self.time = t1;
+        self.step += 1;
+        Ok(report)
+    }
+}

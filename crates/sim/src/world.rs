@@ -1,0 +1,728 @@
+//! The simulation state built from a scene: MPM particles on a background grid, FEM bodies,
+//! contact pairs and level-set boundaries.
+
+use femp_contact::friction::FrictionParams;
+use femp_contact::{BoundaryTopology, ContactPotential, LogBarrier, particle_weight};
+use femp_fem::{Boundary, ElasticBody, LinearElastic, Material, Mesh, NeoHookean, lumped_masses};
+use femp_kernels::{Grid, Kernel, Stencils};
+use femp_solver::{Integrator, Newton};
+use nalgebra::{SMatrix, SVector};
+
+use crate::build::{fem_mesh, inside_simplex, sample_shape, transform_fn};
+use crate::error::{SimError, invalid};
+use crate::motion::{Motion, angular_components};
+use crate::scene::{
+    BodySpec, BoundaryCondition, BoundaryShape, IntegratorSpec, MaterialSpec, ModelSpec, Scene,
+    TransferSpec, VertexSelector,
+};
+
+/// Which particle–grid transfer MPM uses.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Transfer {
+    /// APIC.
+    Apic,
+    /// PIC.
+    Pic,
+    /// FLIP with this ratio.
+    Flip(f64),
+}
+
+/// All MPM particles (every MPM body) on one grid.
+pub struct Mpm<const D: usize> {
+    /// The grid.
+    pub grid: Grid<D>,
+    /// The current stencils (rebuilt each step).
+    pub stencils: Stencils<D>,
+    /// Transfer scheme.
+    pub transfer: Transfer,
+    /// Positions.
+    pub x: Vec<SVector<f64, D>>,
+    /// Velocities.
+    pub v: Vec<SVector<f64, D>>,
+    /// APIC matrices.
+    pub b: Vec<SMatrix<f64, D, D>>,
+    /// Deformation gradients.
+    pub f: Vec<SMatrix<f64, D, D>>,
+    /// Accelerations (Newmark).
+    pub a: Vec<SVector<f64, D>>,
+    /// Masses.
+    pub mass: Vec<f64>,
+    /// Rest volumes.
+    pub volume: Vec<f64>,
+    /// Contact weights ω_q.
+    pub weight: Vec<f64>,
+    /// Body of each particle (index into `bodies`).
+    pub body: Vec<u16>,
+    /// MPM bodies: name, material, particle range.
+    pub bodies: Vec<MpmBody>,
+}
+
+/// One MPM body.
+#[derive(Clone, Debug)]
+pub struct MpmBody {
+    /// Name.
+    pub name: String,
+    /// Material.
+    pub material: Material,
+    /// Its particles are `range.0..range.1`.
+    pub range: (usize, usize),
+}
+
+/// One FEM body.
+pub struct FemBody<const D: usize> {
+    /// Name.
+    pub name: String,
+    /// Mesh (rest configuration).
+    pub mesh: Mesh<D>,
+    /// Elasticity.
+    pub elastic: ElasticBody<D, Material>,
+    /// Material.
+    pub material: Material,
+    /// Current positions.
+    pub x: Vec<SVector<f64, D>>,
+    /// Velocities.
+    pub v: Vec<SVector<f64, D>>,
+    /// Accelerations (Newmark).
+    pub a: Vec<SVector<f64, D>>,
+    /// Lumped masses.
+    pub mass: Vec<f64>,
+    /// Vertex positions at t = 0.
+    pub initial: Vec<SVector<f64, D>>,
+    /// Prescribed vertex sets and their motion.
+    pub prescribed: Vec<(Vec<usize>, Motion<D>)>,
+    /// Per vertex: prescribed?
+    pub fixed: Vec<bool>,
+    /// All vertices prescribed (adds no unknowns, BFEMP §4.4).
+    pub fully_prescribed: bool,
+    /// Boundary.
+    pub boundary: Boundary<D>,
+    /// Boundary facets as `u32` triples (for contact).
+    pub facets: Vec<[u32; 3]>,
+    /// Per boundary vertex (same order as `boundary.vertices()`): lumped boundary measure, the
+    /// contact weight of the vertex when it acts as a "particle" against another FEM body.
+    pub vertex_weight: Vec<f64>,
+}
+
+/// Who the "particles" of a contact pair are.
+#[derive(Clone, Debug)]
+pub enum Points {
+    /// Particles `range` of the MPM set.
+    Mpm {
+        /// Particle index range.
+        range: (usize, usize),
+    },
+    /// Boundary vertices of FEM body `body`.
+    Fem {
+        /// Body index.
+        body: usize,
+    },
+}
+
+/// A contact interaction: points against the boundary of FEM body `facets_of`.
+pub struct Pair<const D: usize> {
+    /// Names, for errors and output.
+    pub names: (String, String),
+    /// The points.
+    pub points: Points,
+    /// The FEM body whose boundary facets the points are tested against.
+    pub facets_of: usize,
+    /// Barrier potential over that boundary.
+    pub potential: ContactPotential<D>,
+    /// Friction (μ may be 0: then no friction work at all).
+    pub friction: FrictionParams,
+}
+
+/// A level-set boundary acting on grid nodes.
+pub struct LevelSet<const D: usize> {
+    /// Geometry.
+    pub shape: BoundaryShape,
+    /// Condition.
+    pub condition: BoundaryCondition,
+    /// Motion (translation of the level set).
+    pub motion: Motion<D>,
+}
+
+impl<const D: usize> LevelSet<D> {
+    /// Signed distance-like value at `x` and time `t` (negative = solid), and the unit normal
+    /// pointing into the free region.
+    pub fn eval(&self, x: &SVector<f64, D>, t: f64) -> (f64, SVector<f64, D>) {
+        let shift = self.motion.at(t).t;
+        let p = x - shift;
+        match &self.shape {
+            BoundaryShape::HalfPlane { point, normal } => {
+                let n = SVector::<f64, D>::from_column_slice(normal).normalize();
+                ((p - SVector::from_column_slice(point)).dot(&n), n)
+            }
+            BoundaryShape::Cosine {
+                amplitude,
+                wavelength,
+                offset,
+                solid_above,
+            } => {
+                let k = std::f64::consts::TAU / wavelength;
+                let y = offset + amplitude * (k * p[0]).cos();
+                let dy = -amplitude * k * (k * p[0]).sin();
+                // Normal of the curve pointing up, normalised; φ ≈ vertical gap scaled.
+                let mut n = SVector::<f64, D>::zeros();
+                n[0] = -dy;
+                n[1] = 1.0;
+                let len = n.norm();
+                n /= len;
+                let phi = (p[1] - y) / len;
+                if *solid_above { (-phi, -n) } else { (phi, n) }
+            }
+        }
+    }
+
+    /// Velocity of the boundary at time `t`.
+    pub fn velocity(&self, t: f64) -> SVector<f64, D> {
+        self.motion.velocity(t, &SVector::zeros())
+    }
+}
+
+/// The whole simulation state.
+pub struct World<const D: usize> {
+    /// The scene.
+    pub scene: Scene,
+    /// Simulated time.
+    pub time: f64,
+    /// Steps taken.
+    pub step: usize,
+    /// Time step.
+    pub dt: f64,
+    /// Integrator.
+    pub integrator: Integrator,
+    /// Gravity.
+    pub gravity: SVector<f64, D>,
+    /// MPM state (if any MPM body).
+    pub mpm: Option<Mpm<D>>,
+    /// FEM bodies.
+    pub fem: Vec<FemBody<D>>,
+    /// Contact pairs.
+    pub pairs: Vec<Pair<D>>,
+    /// Level-set boundaries.
+    pub boundaries: Vec<LevelSet<D>>,
+    /// The Newton solver (kept across steps: symbolic factorisations and buffers are reused).
+    pub newton: Newton,
+}
+
+fn make_material(m: &MaterialSpec) -> Result<Material, SimError> {
+    let e = |e: femp_fem::FemError| invalid("material", e.to_string());
+    Ok(match m.model {
+        ModelSpec::NeoHookean => {
+            Material::NeoHookean(NeoHookean::from_young_poisson(m.youngs_modulus, m.nu).map_err(e)?)
+        }
+        ModelSpec::Linear => {
+            Material::Linear(LinearElastic::from_young_poisson(m.youngs_modulus, m.nu).map_err(e)?)
+        }
+    })
+}
+
+/// `v + ω × (x − c)` (2D: ω about z).
+fn rigid_velocity<const D: usize>(
+    v: &SVector<f64, D>,
+    w: &[f64],
+    x: &SVector<f64, D>,
+    c: &SVector<f64, D>,
+) -> SVector<f64, D> {
+    let r = x - c;
+    let mut out = *v;
+    if D == 2 {
+        out[0] -= w[0] * r[1];
+        out[1] += w[0] * r[0];
+    } else {
+        out[0] += w[1] * r[D - 1] - w[2] * r[1];
+        out[1] += w[2] * r[0] - w[0] * r[D - 1];
+        out[D - 1] += w[0] * r[1] - w[1] * r[0];
+    }
+    out
+}
+
+impl<const D: usize> World<D> {
+    /// Build the state of a validated scene (the scene's dimension must be `D`). Rejects
+    /// initially overlapping bodies.
+    pub fn build(scene: Scene) -> Result<Self, SimError> {
+        let spec = &scene.spec;
+        assert_eq!(
+            spec.dimension, D,
+            "World::<{D}>::build called for a {}D scene",
+            spec.dimension
+        );
+        let gravity = spec
+            .gravity
+            .as_deref()
+            .map_or_else(SVector::zeros, SVector::from_column_slice);
+        let integrator = match spec.time.integrator {
+            IntegratorSpec::BackwardEuler => Integrator::BackwardEuler,
+            IntegratorSpec::Newmark => Integrator::Newmark,
+        };
+        let mut mpm: Option<Mpm<D>> = None;
+        let mut fem: Vec<FemBody<D>> = Vec::new();
+        // Index of each body in its own list, by scene order.
+        let mut slot: Vec<(bool, usize)> = Vec::new();
+        for (i, b) in spec.bodies.iter().enumerate() {
+            let f = format!("bodies[{i}]");
+            match b {
+                BodySpec::Mpm {
+                    name,
+                    shape,
+                    particles_per_cell,
+                    material,
+                    velocity,
+                    angular_velocity,
+                } => {
+                    let m = spec.mpm.as_ref().expect("validated: mpm section present");
+                    let state = mpm.get_or_insert_with(|| {
+                        let grid = Grid::new(m.grid_spacing, SVector::zeros(), Kernel::Quadratic)
+                            .expect("validated spacing");
+                        Mpm {
+                            stencils: grid.stencils(&[]).expect("empty stencils"),
+                            grid,
+                            transfer: match m.transfer {
+                                TransferSpec::Apic => Transfer::Apic,
+                                TransferSpec::Pic => Transfer::Pic,
+                                TransferSpec::Flip => Transfer::Flip(m.flip_ratio),
+                            },
+                            x: Vec::new(),
+                            v: Vec::new(),
+                            b: Vec::new(),
+                            f: Vec::new(),
+                            a: Vec::new(),
+                            mass: Vec::new(),
+                            volume: Vec::new(),
+                            weight: Vec::new(),
+                            body: Vec::new(),
+                            bodies: Vec::new(),
+                        }
+                    });
+                    let ppc = particles_per_cell.unwrap_or(if D == 2 { 4 } else { 8 });
+                    let per_axis = (ppc as f64).powf(1.0 / D as f64).round() as usize;
+                    let samples = sample_shape::<D>(
+                        shape,
+                        m.grid_spacing,
+                        per_axis,
+                        &scene.base_dir,
+                        &format!("{f}.shape"),
+                    )?;
+                    let material_m = make_material(material)?;
+                    let start = state.x.len();
+                    let n = samples.x.len();
+                    let total_mass: f64 = samples.volume.iter().sum::<f64>() * material.rho;
+                    let com: SVector<f64, D> = samples
+                        .x
+                        .iter()
+                        .zip(&samples.volume)
+                        .map(|(x, v)| x * (v * material.rho))
+                        .sum::<SVector<f64, D>>()
+                        / total_mass;
+                    let v0 = velocity
+                        .as_deref()
+                        .map_or_else(SVector::zeros, SVector::from_column_slice);
+                    let w = angular_components(angular_velocity, D);
+                    let dp = m.grid_spacing * m.grid_spacing * 0.25;
+                    let l = {
+                        // Velocity gradient of the rigid rotation, for B = L D_p.
+                        let mut l = SMatrix::<f64, D, D>::zeros();
+                        for a in 0..D {
+                            let mut ea = SVector::<f64, D>::zeros();
+                            ea[a] = 1.0;
+                            let col = rigid_velocity(&SVector::zeros(), &w, &ea, &SVector::zeros());
+                            l.set_column(a, &col);
+                        }
+                        l
+                    };
+                    for k in 0..n {
+                        let x = samples.x[k];
+                        state.x.push(x);
+                        state.v.push(rigid_velocity(&v0, &w, &x, &com));
+                        state.b.push(l * dp);
+                        state.f.push(SMatrix::identity());
+                        state.a.push(gravity);
+                        state.mass.push(samples.volume[k] * material.rho);
+                        state.volume.push(samples.volume[k]);
+                        state.weight.push(particle_weight::<D>(samples.volume[k]));
+                        state.body.push(state.bodies.len() as u16);
+                    }
+                    slot.push((true, state.bodies.len()));
+                    state.bodies.push(MpmBody {
+                        name: name.clone(),
+                        material: material_m,
+                        range: (start, start + n),
+                    });
+                }
+                BodySpec::Fem {
+                    name,
+                    mesh,
+                    transform,
+                    material,
+                    velocity,
+                    angular_velocity,
+                    prescribed,
+                } => {
+                    let mut m = fem_mesh::<D>(mesh, &scene.base_dir, &format!("{f}.mesh"))?;
+                    if let Some(t) = transform {
+                        let tf = transform_fn::<D>(t);
+                        m = m
+                            .mapped(tf)
+                            .map_err(|e| invalid(format!("{f}.transform"), e.to_string()))?;
+                    }
+                    let mat = make_material(material)?;
+                    let elastic = ElasticBody::new(&m, mat)
+                        .map_err(|e| invalid(format!("{f}.mesh"), e.to_string()))?;
+                    let masses = lumped_masses(&m, material.rho)
+                        .map_err(|e| invalid(format!("{f}.material.rho"), e.to_string()))?;
+                    let x = m.vertices().to_vec();
+                    let total: f64 = masses.iter().sum();
+                    let com: SVector<f64, D> = x
+                        .iter()
+                        .zip(&masses)
+                        .map(|(p, mm)| p * *mm)
+                        .sum::<SVector<f64, D>>()
+                        / total;
+                    let v0 = velocity
+                        .as_deref()
+                        .map_or_else(SVector::zeros, SVector::from_column_slice);
+                    let w = angular_components(angular_velocity, D);
+                    let v: Vec<_> = x.iter().map(|p| rigid_velocity(&v0, &w, p, &com)).collect();
+                    let mut fixed = vec![false; x.len()];
+                    let mut sets = Vec::new();
+                    for (k, p) in prescribed.iter().enumerate() {
+                        let pf = format!("{f}.prescribed[{k}].vertices");
+                        let ids: Vec<usize> = match &p.vertices {
+                            VertexSelector::All => (0..x.len()).collect(),
+                            VertexSelector::Below { axis, value } => {
+                                (0..x.len()).filter(|&i| x[i][*axis] < *value).collect()
+                            }
+                            VertexSelector::Above { axis, value } => {
+                                (0..x.len()).filter(|&i| x[i][*axis] > *value).collect()
+                            }
+                            VertexSelector::List(l) => {
+                                if let Some(&bad) = l.iter().find(|&&i| i >= x.len()) {
+                                    return Err(invalid(
+                                        pf,
+                                        format!(
+                                            "vertex {bad} does not exist (the mesh has {})",
+                                            x.len()
+                                        ),
+                                    ));
+                                }
+                                l.clone()
+                            }
+                        };
+                        if ids.is_empty() {
+                            return Err(invalid(pf, "selects no vertex"));
+                        }
+                        let centroid =
+                            ids.iter().map(|&i| x[i]).sum::<SVector<f64, D>>() / ids.len() as f64;
+                        for &i in &ids {
+                            fixed[i] = true;
+                        }
+                        sets.push((ids, Motion::new(&p.motion, centroid)));
+                    }
+                    let fully = fixed.iter().all(|&f| f);
+                    let boundary = Boundary::of(&m);
+                    let facets: Vec<[u32; 3]> = boundary
+                        .facets()
+                        .iter()
+                        .map(|f| {
+                            [
+                                f[0] as u32,
+                                f[1] as u32,
+                                if D == 3 { f[2] as u32 } else { 0 },
+                            ]
+                        })
+                        .collect();
+                    // Lumped boundary measure per boundary vertex: 1/D of each incident facet.
+                    let mut vw = vec![0.0; m.num_vertices()];
+                    for fi in 0..boundary.facets().len() {
+                        let a = boundary.facet_normal(fi, &x).norm();
+                        for &vtx in &boundary.facets()[fi][..D] {
+                            vw[vtx] += a / D as f64;
+                        }
+                    }
+                    let vertex_weight = boundary.vertices().iter().map(|&i| vw[i]).collect();
+                    slot.push((false, fem.len()));
+                    fem.push(FemBody {
+                        name: name.clone(),
+                        elastic,
+                        material: mat,
+                        a: vec![gravity; x.len()],
+                        v,
+                        initial: x.clone(),
+                        x,
+                        mass: masses,
+                        prescribed: sets,
+                        fixed,
+                        fully_prescribed: fully,
+                        boundary,
+                        facets,
+                        vertex_weight,
+                        mesh: m,
+                    });
+                }
+            }
+        }
+        // Contact pairs.
+        let mut pairs = Vec::new();
+        if let Some(c) = &spec.contact {
+            let names: Vec<&str> = spec
+                .bodies
+                .iter()
+                .map(|b| match b {
+                    BodySpec::Mpm { name, .. } | BodySpec::Fem { name, .. } => name.as_str(),
+                })
+                .collect();
+            for i in 0..names.len() {
+                for j in i + 1..names.len() {
+                    let (si, sj) = (slot[i], slot[j]);
+                    if si.0 && sj.0 {
+                        continue; // MPM–MPM: through the shared grid.
+                    }
+                    let over = c.pairs.iter().find(|p| {
+                        (p.bodies[0] == names[i] && p.bodies[1] == names[j])
+                            || (p.bodies[0] == names[j] && p.bodies[1] == names[i])
+                    });
+                    if over.is_some_and(|p| !p.enabled) {
+                        continue;
+                    }
+                    let dhat = over.and_then(|p| p.dhat).unwrap_or(c.dhat);
+                    let kappa = over.and_then(|p| p.kappa).unwrap_or(c.kappa);
+                    let mu = over.and_then(|p| p.friction).unwrap_or(c.friction);
+                    let eps_v = over.and_then(|p| p.eps_v).unwrap_or(c.eps_v);
+                    let barrier = LogBarrier::new(dhat, kappa)
+                        .map_err(|e| invalid("contact", e.to_string()))?;
+                    let friction = FrictionParams::new(mu, eps_v, spec.time.dt)
+                        .map_err(|e| invalid("contact", e.to_string()))?;
+                    let mut add = |points: Points,
+                                   facets_of: usize,
+                                   names: (String, String)|
+                     -> Result<(), SimError> {
+                        let body = &fem[facets_of];
+                        let topo =
+                            BoundaryTopology::<D>::new(&body.facets, body.mesh.num_vertices())
+                                .map_err(|e| {
+                                    invalid(format!("bodies `{}`", body.name), e.to_string())
+                                })?;
+                        pairs.push(Pair {
+                            names,
+                            points,
+                            facets_of,
+                            potential: ContactPotential::new(barrier, topo),
+                            friction,
+                        });
+                        Ok(())
+                    };
+                    let (ni, nj) = (names[i].to_string(), names[j].to_string());
+                    match (si, sj) {
+                        ((true, a), (false, b)) => {
+                            let range = mpm.as_ref().map(|m| m.bodies[a].range).unwrap_or((0, 0));
+                            add(Points::Mpm { range }, b, (ni, nj))?;
+                        }
+                        ((false, a), (true, b)) => {
+                            let range = mpm.as_ref().map(|m| m.bodies[b].range).unwrap_or((0, 0));
+                            add(Points::Mpm { range }, a, (nj, ni))?;
+                        }
+                        ((false, a), (false, b)) => {
+                            if fem[a].fully_prescribed && fem[b].fully_prescribed {
+                                continue;
+                            }
+                            add(Points::Fem { body: a }, b, (ni.clone(), nj.clone()))?;
+                            add(Points::Fem { body: b }, a, (nj, ni))?;
+                        }
+                        _ => unreachable!(),
+                    }
+                }
+            }
+        }
+        let boundaries = spec
+            .boundaries
+            .iter()
+            .map(|b| LevelSet {
+                shape: b.shape.clone(),
+                condition: b.condition,
+                motion: Motion::new(&b.motion, SVector::zeros()),
+            })
+            .collect();
+        let world = Self {
+            dt: spec.time.dt,
+            scene,
+            time: 0.0,
+            step: 0,
+            integrator,
+            gravity,
+            mpm,
+            fem,
+            pairs,
+            boundaries,
+            newton: Newton::new(),
+        };
+        world.check_overlaps()?;
+        Ok(world)
+    }
+
+    /// Reject bodies that start overlapping (BFEMP eq. 15): a particle or FEM vertex inside (or on
+    /// the boundary of) another body's elements, or MPM bodies whose particles interleave.
+    fn check_overlaps(&self) -> Result<(), SimError> {
+        for pair in &self.pairs {
+            let target = &self.fem[pair.facets_of];
+            let points: Vec<SVector<f64, D>> = match &pair.points {
+                Points::Mpm { range } => self
+                    .mpm
+                    .as_ref()
+                    .map(|m| m.x[range.0..range.1].to_vec())
+                    .unwrap_or_default(),
+                Points::Fem { body } => self.fem[*body]
+                    .boundary
+                    .vertices()
+                    .iter()
+                    .map(|&v| self.fem[*body].x[v])
+                    .collect(),
+            };
+            if let Some((k, e)) = first_inside(&points, &target.mesh, &target.x) {
+                return Err(SimError::Overlap {
+                    a: pair.names.0.clone(),
+                    b: pair.names.1.clone(),
+                    detail: format!(
+                        "point {k} of `{}` at {:?} lies inside element {e} of `{}`",
+                        pair.names.0,
+                        points[k].as_slice(),
+                        pair.names.1
+                    ),
+                });
+            }
+            // Touching the boundary (distance 0) is infeasible too.
+            let mut c = femp_contact::broad_phase::Candidates::default();
+            femp_contact::broad_phase::candidates_within(
+                &points,
+                &target.x,
+                &target.facets,
+                0.0,
+                &mut c,
+            );
+            let w = vec![1.0; points.len()];
+            let mut terms = Vec::new();
+            if let Err(femp_contact::ContactError::Penetration {
+                particle, facet, ..
+            }) = pair
+                .potential
+                .collect_terms(&points, &w, &target.x, &c, &mut terms)
+            {
+                return Err(SimError::Overlap {
+                    a: pair.names.0.clone(),
+                    b: pair.names.1.clone(),
+                    detail: format!(
+                        "point {particle} of `{}` touches boundary facet {facet} of `{}`",
+                        pair.names.0, pair.names.1
+                    ),
+                });
+            }
+        }
+        if let Some(m) = &self.mpm
+            && m.bodies.len() > 1
+        {
+            // Particles of different MPM bodies closer than half a particle spacing.
+            let h = m.grid.h();
+            let min_gap = 0.25 * h;
+            let mut cells: std::collections::HashMap<[i64; D], Vec<usize>> =
+                std::collections::HashMap::new();
+            for (p, x) in m.x.iter().enumerate() {
+                cells
+                    .entry(std::array::from_fn(|a| (x[a] / h).floor() as i64))
+                    .or_default()
+                    .push(p);
+            }
+            for (p, x) in m.x.iter().enumerate() {
+                let c: [i64; D] = std::array::from_fn(|a| (x[a] / h).floor() as i64);
+                for off in 0..3usize.pow(D as u32) {
+                    let mut rem = off;
+                    let key: [i64; D] = std::array::from_fn(|a| {
+                        let o = (rem % 3) as i64 - 1;
+                        rem /= 3;
+                        c[a] + o
+                    });
+                    for &q in cells.get(&key).map(Vec::as_slice).unwrap_or(&[]) {
+                        if m.body[q] != m.body[p] && (m.x[q] - x).norm() < min_gap {
+                            return Err(SimError::Overlap {
+                                a: m.bodies[m.body[p] as usize].name.clone(),
+                                b: m.bodies[m.body[q] as usize].name.clone(),
+                                detail: format!(
+                                    "particles {p} and {q} are {:.3e} m apart",
+                                    (m.x[q] - x).norm()
+                                ),
+                            });
+                        }
+                    }
+                }
+            }
+        }
+        Ok(())
+    }
+}
+
+/// The first point inside (or on) an element of `mesh` at positions `x`: (point, element).
+pub fn first_inside<const D: usize>(
+    points: &[SVector<f64, D>],
+    mesh: &Mesh<D>,
+    x: &[SVector<f64, D>],
+) -> Option<(usize, usize)> {
+    inside_elements(points, mesh, x).into_iter().next()
+}
+
+/// Every point inside (or on) an element: (point, element), via a hash of element boxes.
+pub fn inside_elements<const D: usize>(
+    points: &[SVector<f64, D>],
+    mesh: &Mesh<D>,
+    x: &[SVector<f64, D>],
+) -> Vec<(usize, usize)> {
+    if points.is_empty() || mesh.num_cells() == 0 {
+        return Vec::new();
+    }
+    let cells = mesh.cells();
+    let boxes: Vec<(SVector<f64, D>, SVector<f64, D>)> = cells
+        .iter()
+        .map(|c| {
+            let mut lo = x[c[0]];
+            let mut hi = lo;
+            for &v in &c[1..=D] {
+                lo = lo.inf(&x[v]);
+                hi = hi.sup(&x[v]);
+            }
+            (lo, hi)
+        })
+        .collect();
+    let size = boxes.iter().map(|(l, h)| (h - l).amax()).sum::<f64>() / boxes.len() as f64;
+    let cell = if size > 0.0 { size } else { 1.0 };
+    let mut table: std::collections::HashMap<[i64; D], Vec<usize>> =
+        std::collections::HashMap::new();
+    for (e, (lo, hi)) in boxes.iter().enumerate() {
+        let a: [i64; D] = std::array::from_fn(|k| (lo[k] / cell).floor() as i64);
+        let b: [i64; D] = std::array::from_fn(|k| (hi[k] / cell).floor() as i64);
+        let n: usize = (0..D).map(|k| (b[k] - a[k] + 1) as usize).product();
+        for flat in 0..n {
+            let mut rem = flat;
+            let key: [i64; D] = std::array::from_fn(|k| {
+                let span = (b[k] - a[k] + 1) as usize;
+                let o = rem % span;
+                rem /= span;
+                a[k] + o as i64
+            });
+            table.entry(key).or_default().push(e);
+        }
+    }
+    let mut out = Vec::new();
+    for (p, x0) in points.iter().enumerate() {
+        let key: [i64; D] = std::array::from_fn(|k| (x0[k] / cell).floor() as i64);
+        if let Some(list) = table.get(&key) {
+            for &e in list {
+                let (lo, hi) = &boxes[e];
+                if (0..D).all(|k| x0[k] >= lo[k] && x0[k] <= hi[k])
+                    && inside_simplex(x0, &cells[e][..D + 1], x)
+                {
+                    out.push((p, e));
+                    break;
+                }
+            }
+        }
+    }
+    out
+}

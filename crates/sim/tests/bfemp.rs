@@ -1,0 +1,202 @@
+//! BFEMP end to end on small scenes: a block falling on a plate at large time steps, momentum
+//! conservation through an MPM–FEM collision, friction on a slope (sticking and sliding) in 2D
+//! and 3D. Every step of every scene is checked for penetrations.
+
+use std::path::Path;
+
+use femp::run::{RunOptions, RunResult, run};
+use femp::scene;
+
+fn run_scene(json: &str) -> RunResult {
+    let s = scene::parse(json, "test.json", Path::new(".").to_path_buf(), "test").unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    let r = run(
+        s,
+        dir.path(),
+        &RunOptions {
+            no_frames: true,
+            ..Default::default()
+        },
+    )
+    .unwrap();
+    for m in &r.metrics {
+        assert_eq!(m.penetrations, 0, "penetration at step {}", m.step);
+    }
+    r
+}
+
+fn block_on_plate(dt: f64, duration: f64) -> String {
+    format!(
+        r#"{{
+  "dimension": 2, "gravity": [0, -9.81],
+  "time": {{ "dt": {dt}, "duration": {duration} }},
+  "solver": {{ "tolerance": 1e-5 }},
+  "mpm": {{ "grid_spacing": 0.05 }},
+  "bodies": [
+    {{ "kind": "mpm", "name": "block", "shape": {{ "box": {{ "min": [-0.2, 0.05], "max": [0.2, 0.25] }} }},
+      "material": {{ "E": 1e5, "nu": 0.3, "rho": 1000 }} }},
+    {{ "kind": "fem", "name": "plate", "mesh": {{ "rectangle": {{ "min": [-1, -0.1], "max": [1, 0], "cells": [20, 1] }} }},
+      "material": {{ "E": 1e7, "nu": 0.3, "rho": 1000 }}, "prescribed": [ {{ "vertices": "all", "motion": [] }} ] }}
+  ],
+  "contact": {{ "dhat": 0.005, "kappa": 1e5 }}
+}}"#
+    )
+}
+
+/// An MPM block dropped on a fixed FEM plate comes to rest above it, without any particle ever
+/// entering the plate — at Δt = 1e-2 and at Δt = 1e-1 (where one step moves the block further
+/// than the gap).
+#[test]
+fn block_falls_on_plate_and_rests_at_large_time_steps() {
+    for dt in [1e-2, 1e-1] {
+        let r = run_scene(&block_on_plate(dt, 1.5));
+        let last = r.metrics.last().unwrap();
+        let mass = 0.4 * 0.2 * 1000.0;
+        // At rest: tiny speed, in contact (within d̂), the weight carried by the barrier.
+        let speed = last.momentum[1].abs() / mass;
+        assert!(speed < 0.05, "dt {dt}: still moving at {speed} m/s");
+        assert!(
+            last.min_distance > 0.0 && last.min_distance < 0.005,
+            "dt {dt}: min distance {}",
+            last.min_distance
+        );
+        assert!(last.barrier_energy > 0.0);
+        assert_eq!(r.summary.max_penetrations, 0);
+    }
+}
+
+/// A free MPM disk and a free FEM disk collide head-on without gravity: linear momentum is
+/// conserved through the contact to the solver tolerance (the barrier is translation
+/// invariant and the transfers conserve momentum), and they bounce apart.
+#[test]
+fn mpm_fem_collision_conserves_linear_momentum() {
+    let json = r#"{
+  "dimension": 2,
+  "time": { "dt": 0.002, "duration": 0.12 },
+  "solver": { "tolerance": 1e-9, "max_newton_iterations": 200 },
+  "mpm": { "grid_spacing": 0.05 },
+  "bodies": [
+    { "kind": "mpm", "name": "left", "shape": { "disk": { "center": [-0.32, 0.0], "radius": 0.3 } },
+      "material": { "E": 1e6, "nu": 0.3, "rho": 1000 }, "velocity": [2.0, 0.1] },
+    { "kind": "fem", "name": "right", "mesh": { "disk": { "center": [0.32, 0.05], "radius": 0.3, "rings": 6 } },
+      "material": { "E": 1e6, "nu": 0.3, "rho": 1000 }, "velocity": [-2.0, 0.0] }
+  ],
+  "contact": { "dhat": 0.005, "kappa": 1e6 }
+}"#;
+    let r = run_scene(json);
+    let p0 = r.metrics[0].momentum;
+    let scale = r.metrics[0].kinetic_energy.sqrt() * 30.0; // ~ Σ m |v|
+    let mut touched = false;
+    for m in &r.metrics {
+        touched |= m.barrier_energy > 0.0;
+        for a in 0..2 {
+            assert!(
+                (m.momentum[a] - p0[a]).abs() <= 1e-6 * scale,
+                "step {}: momentum {:?} vs {:?}",
+                m.step,
+                m.momentum,
+                p0
+            );
+        }
+    }
+    assert!(touched, "the disks never came into contact");
+}
+
+fn slope(mu: f64, dim: usize) -> String {
+    let theta = -(0.2f64).atan().to_degrees();
+    if dim == 2 {
+        format!(
+            r#"{{
+  "dimension": 2, "gravity": [0, -9.81],
+  "time": {{ "dt": 0.005, "duration": 0.3 }},
+  "solver": {{ "tolerance": 1e-6 }},
+  "mpm": {{ "grid_spacing": 0.01 }},
+  "bodies": [
+    {{ "kind": "mpm", "name": "block",
+      "shape": {{ "box": {{ "min": [-0.05, 0.0005], "max": [0.05, 0.0205], "transform": {{ "rotate_deg": {theta} }} }} }},
+      "material": {{ "E": 1e8, "nu": 0.2, "rho": 100 }} }},
+    {{ "kind": "fem", "name": "slope", "mesh": {{ "rectangle": {{ "min": [-1, -0.1], "max": [1, 0], "cells": [40, 2] }} }},
+      "transform": {{ "rotate_deg": {theta} }},
+      "material": {{ "E": 1e9, "nu": 0.3, "rho": 1000 }}, "prescribed": [ {{ "vertices": "all", "motion": [] }} ] }}
+  ],
+  "contact": {{ "dhat": 0.001, "kappa": 1e6, "friction": {mu}, "eps_v": 1e-5 }}
+}}"#
+        )
+    } else {
+        format!(
+            r#"{{
+  "dimension": 3, "gravity": [0, -9.81, 0],
+  "time": {{ "dt": 0.005, "duration": 0.15 }},
+  "solver": {{ "tolerance": 1e-6 }},
+  "mpm": {{ "grid_spacing": 0.02 }},
+  "bodies": [
+    {{ "kind": "mpm", "name": "block",
+      "shape": {{ "box": {{ "min": [-0.04, 0.0005, -0.04], "max": [0.04, 0.0405, 0.04], "transform": {{ "rotate_deg": {theta}, "axis": [0, 0, 1] }} }} }},
+      "material": {{ "E": 1e8, "nu": 0.2, "rho": 100 }} }},
+    {{ "kind": "fem", "name": "slope", "mesh": {{ "cuboid": {{ "min": [-0.6, -0.05, -0.2], "max": [0.6, 0, 0.2], "cells": [12, 1, 4] }} }},
+      "transform": {{ "rotate_deg": {theta}, "axis": [0, 0, 1] }},
+      "material": {{ "E": 1e9, "nu": 0.3, "rho": 1000 }}, "prescribed": [ {{ "vertices": "all", "motion": [] }} ] }}
+  ],
+  "contact": {{ "dhat": 0.001, "kappa": 1e6, "friction": {mu}, "eps_v": 1e-5 }}
+}}"#
+        )
+    }
+}
+
+/// Along-slope speed of the block's centre of mass after it lands, and the time it landed.
+fn slope_velocity(r: &RunResult, mass: f64) -> Vec<(f64, f64)> {
+    let th = 0.2f64.atan();
+    let dir = [th.cos(), -th.sin()];
+    r.metrics
+        .iter()
+        .map(|m| {
+            (
+                m.t,
+                (m.momentum[0] * dir[0] + m.momentum[1] * dir[1]) / mass,
+            )
+        })
+        .collect()
+}
+
+fn check_slope(dim: usize) {
+    let g = 9.81;
+    let th = 0.2f64.atan();
+    let mass = if dim == 2 {
+        0.1 * 0.02 * 100.0
+    } else {
+        0.08 * 0.04 * 0.08 * 100.0
+    };
+    // Slides: a = g (sin θ − μ cos θ).
+    for mu in [0.0, 0.1] {
+        let r = run_scene(&slope(mu, dim));
+        let v = slope_velocity(&r, mass);
+        let a = g * (th.sin() - mu * th.cos());
+        // Fit the acceleration over the second half (after landing).
+        let n = v.len();
+        let (t0, v0) = v[n / 2];
+        let (t1, v1) = v[n - 1];
+        let fitted = (v1 - v0) / (t1 - t0);
+        assert!(
+            (fitted - a).abs() <= 2e-3 * a,
+            "{dim}D μ = {mu}: acceleration {fitted} vs {a}"
+        );
+    }
+    // Sticks: μ ≥ tan θ = 0.2 → (mollified) static friction holds the block.
+    let r = run_scene(&slope(0.25, dim));
+    let v = slope_velocity(&r, mass);
+    let vmax = v[v.len() / 2..]
+        .iter()
+        .map(|x| x.1.abs())
+        .fold(0.0, f64::max);
+    assert!(vmax < 1e-3, "{dim}D μ = 0.25: block slides at {vmax} m/s");
+}
+
+#[test]
+fn slope_2d_sticks_and_slides() {
+    check_slope(2);
+}
+
+#[test]
+fn slope_3d_sticks_and_slides() {
+    check_slope(3);
+}
