@@ -2,7 +2,7 @@
 //! bounds: each function copies into the concrete 2×2 / 3×3 (or 4×4 / 9×9) type, works there,
 //! and copies back. The copies cost nothing next to the work.
 
-use nalgebra::{Matrix2, Matrix3, Matrix4, SMatrix, SVector, SymmetricEigen, Vector2, Vector3};
+use nalgebra::{Matrix2, Matrix3, Matrix4, SMatrix, SVector, SymmetricEigen, Vector3};
 
 /// Determinant of a `D×D` matrix.
 #[inline]
@@ -115,14 +115,19 @@ pub fn sym_eigen<const D: usize>(m: &SMatrix<f64, D, D>) -> (SVector<f64, D>, SM
     let mut vals = SVector::<f64, D>::zeros();
     let mut vecs = SMatrix::<f64, D, D>::zeros();
     if D == 2 {
-        let e = SymmetricEigen::new(Matrix2::from_fn(|i, j| m[(i, j)]));
-        let (ev, q): (Vector2<f64>, Matrix2<f64>) = (e.eigenvalues, e.eigenvectors);
-        for i in 0..2 {
-            vals[i] = ev[i];
-            for j in 0..2 {
-                vecs[(i, j)] = q[(i, j)];
-            }
-        }
+        // Closed form: λ = (a+c)/2 ± √(((a−c)/2)² + b²), eigenvectors a rotation by θ with
+        // tan 2θ = 2b/(a−c) (exactly orthonormal; no iteration).
+        let (a, b, c) = (m[(0, 0)], 0.5 * (m[(0, 1)] + m[(1, 0)]), m[(1, 1)]);
+        let mid = 0.5 * (a + c);
+        let rad = (0.5 * (a - c)).hypot(b);
+        let theta = 0.5 * (2.0 * b).atan2(a - c);
+        let (sn, cs) = theta.sin_cos();
+        vals[0] = mid + rad;
+        vals[1] = mid - rad;
+        vecs[(0, 0)] = cs;
+        vecs[(1, 0)] = sn;
+        vecs[(0, 1)] = -sn;
+        vecs[(1, 1)] = cs;
     } else {
         let e = SymmetricEigen::new(Matrix3::from_fn(|i, j| m[(i, j)]));
         let (ev, q): (Vector3<f64>, Matrix3<f64>) = (e.eigenvalues, e.eigenvectors);

@@ -118,7 +118,8 @@ pub fn chain_gradient<const D: usize>(
 }
 
 /// Hessian blocks of `scale · ψ(F)` with respect to the `x_i` of `F = Σ_i x_i g_iᵀ`, row-major
-/// `n×n` blocks (`out[i·n + j]` is `∂²/∂x_i∂x_j`, a `D×D` matrix), `n = g.len()`.
+/// `n×n` blocks (`out[i·n + j]` is `∂²/∂x_i∂x_j`, a `D×D` matrix), `n = g.len()`. The tangent
+/// must be symmetric (it is the Hessian of `ψ`), which makes `H_ji = H_ijᵀ`.
 pub fn chain_hessian<const D: usize>(
     t: &Tangent<D>,
     g: &[SVector<f64, D>],
@@ -140,9 +141,10 @@ pub fn chain_hessian<const D: usize>(
                 tj[ab][c] = s * scale;
             }
         }
-        for i in 0..n {
+        // The tangent is symmetric (a Hessian of ψ), so H_ij = H_jiᵀ: compute i ≤ j only.
+        for i in 0..=j {
             let gi = &g[i];
-            let h = &mut out[i * n + j];
+            let mut h = SMatrix::<f64, D, D>::zeros();
             for a in 0..D {
                 for c in 0..D {
                     let mut s = 0.0;
@@ -152,6 +154,8 @@ pub fn chain_hessian<const D: usize>(
                     h[(a, c)] = s;
                 }
             }
+            out[i * n + j] = h;
+            out[j * n + i] = h.transpose();
         }
     }
 }

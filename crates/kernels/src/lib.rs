@@ -46,4 +46,4 @@ pub mod transfer;
 pub use error::KernelError;
 pub use grid::Grid;
 pub use spline::{AxisWeights, Kernel};
-pub use stencil::{ParticleStencil, StencilValues, Stencils};
+pub use stencil::{NodeRows, ParticleStencil, StencilValues, Stencils};

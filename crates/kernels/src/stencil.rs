@@ -249,6 +249,55 @@ impl<const D: usize> Stencils<D> {
         self.slot(self.slot_of[p] as usize)
     }
 
+    /// Per-axis position (`0..N`) of each stencil entry inside the particle's `N^D` block, in
+    /// the order [`ParticleStencil::for_each`] visits them (lexicographic, last axis fastest).
+    /// Entries `a` and `b` of any particle's stencil are nodes whose integer indices differ by
+    /// `stencil_axes()[b] − stencil_axes()[a]` — which lets an implicit solver address the
+    /// node-pair blocks of a particle's Hessian without looking nodes up.
+    #[inline]
+    pub fn stencil_axes(&self) -> &[[u8; D]] {
+        &self.offsets_axes
+    }
+
+    /// Race-free parallel scatter into per-node rows: `rows` holds `row_len` entries for each
+    /// active node (`rows.len() == num_nodes() * row_len`), and `f(particles, rows)` is called
+    /// once per particle group with the group's particle indices and a [`NodeRows`] view
+    /// through which it may write the rows of the nodes of those particles' stencils. Groups
+    /// whose stencils share no node run concurrently (the colouring of the transfers), so the
+    /// result does not depend on the number of threads. `NodeRows::row` panics for a node
+    /// outside the group's stencils.
+    pub fn par_scatter_rows<T: Send>(
+        &self,
+        rows: &mut [T],
+        row_len: usize,
+        f: impl Fn(&[u32], &mut NodeRows<'_, T, D>) + Sync,
+    ) {
+        assert_eq!(
+            rows.len(),
+            self.num_nodes() * row_len,
+            "rows must hold row_len entries per active node"
+        );
+        let shared = DisjointSlice::new(rows);
+        let g = 1i64 << group_log(D);
+        for c in 0..(1usize << D) {
+            let groups = &self.colour_order[self.colour_start[c]..self.colour_start[c + 1]];
+            groups.par_iter().with_min_len(4).for_each(|&gi| {
+                let info = &self.groups[gi as usize];
+                let mut view = NodeRows {
+                    rows: &shared,
+                    row_len,
+                    node_index: &self.node_index,
+                    origin: std::array::from_fn(|a| info.coord[a] * g),
+                    win: self.win as i64,
+                };
+                f(
+                    &self.order[info.start as usize..info.end as usize],
+                    &mut view,
+                );
+            });
+        }
+    }
+
     #[inline]
     pub(crate) fn slot(&self, s: usize) -> ParticleStencil<'_, D> {
         let g = self.slot_group[s] as usize;
@@ -732,6 +781,39 @@ impl<const D: usize> ParticleStencil<'_, D> {
     ) {
         let ft = f_n.transpose();
         self.for_each(|i, _, grad| f(i, ft * grad));
+    }
+}
+
+/// The rows a particle group may write during [`Stencils::par_scatter_rows`]: those of the
+/// nodes inside the group's window (every stencil of its particles).
+pub struct NodeRows<'a, T, const D: usize> {
+    rows: &'a DisjointSlice<'a, T>,
+    row_len: usize,
+    node_index: &'a [[i64; D]],
+    origin: [i64; D],
+    win: i64,
+}
+
+impl<T, const D: usize> NodeRows<'_, T, D> {
+    /// The row of active node `node`. Panics if the node is not in this group's window.
+    #[inline]
+    pub fn row(&mut self, node: usize) -> &mut [T] {
+        let idx = &self.node_index[node];
+        for a in 0..D {
+            let l = idx[a] - self.origin[a];
+            assert!(
+                (0..self.win).contains(&l),
+                "node {node} is outside the particle group's stencils"
+            );
+        }
+        if self.row_len == 0 {
+            return &mut [];
+        }
+        let start = node * self.row_len;
+        // SAFETY: the node lies in this group's window, and groups running concurrently (one
+        // colour) have disjoint windows, so no other task accesses these entries now; the
+        // `&mut self` receiver keeps at most one row of this view alive at a time.
+        unsafe { std::slice::from_raw_parts_mut(self.rows.get(start) as *mut T, self.row_len) }
     }
 }
 

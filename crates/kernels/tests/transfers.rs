@@ -428,6 +428,103 @@ fn parallel_is_bitwise_serial<const D: usize>(c: &Cloud<D>) -> Result<(), TestCa
     Ok(())
 }
 
+/// `par_scatter_rows` visits every particle exactly once, may write every node of its stencil
+/// (no panic), and reproduces a serial scatter (per-node mass, and per-node-pair weight
+/// products addressed through `stencil_axes`) bitwise, whatever the number of threads.
+fn scatter_rows<const D: usize>(c: &Cloud<D>) -> Result<(), TestCaseError> {
+    let st = c.grid().stencils(&c.x).unwrap();
+    let nn = st.stencil_len();
+    let npa = c.kernel.nodes_per_axis() as i64;
+    let span = (2 * npa - 1) as usize;
+    let slots = span.pow(D as u32);
+    let axes = st.stencil_axes().to_vec();
+    prop_assert_eq!(axes.len(), nn);
+    let pair_slot = |a: usize, b: usize| -> usize {
+        let mut e = 0;
+        for k in (0..D).rev() {
+            e = e * span + (axes[b][k] as i64 - axes[a][k] as i64 + npa - 1) as usize;
+        }
+        e
+    };
+    // Serial reference through node indices.
+    let mut mass = vec![0.0; st.num_nodes()];
+    let mut pairs = vec![0.0; st.num_nodes() * slots];
+    for p in 0..c.x.len() {
+        let vals = st.particle(p).collect();
+        for a in 0..nn {
+            mass[vals.node[a] as usize] += c.m[p] * vals.w[a];
+            let ia = st.node_index(vals.node[a] as usize);
+            for b in 0..nn {
+                let ib = st.node_index(vals.node[b] as usize);
+                let mut e = 0;
+                for k in (0..D).rev() {
+                    e = e * span + (ib[k] - ia[k] + npa - 1) as usize;
+                }
+                prop_assert_eq!(
+                    e,
+                    pair_slot(a, b),
+                    "stencil_axes disagree with node indices"
+                );
+                pairs[vals.node[a] as usize * slots + e] += vals.w[a] * vals.w[b];
+            }
+        }
+    }
+    let run = |threads: usize| {
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap();
+        pool.install(|| {
+            let mut rows = vec![(0.0, 0u32); st.num_nodes() * (slots + 1)];
+            st.par_scatter_rows(&mut rows, slots + 1, |particles, view| {
+                for &p in particles {
+                    let p = p as usize;
+                    let vals = st.particle(p).collect();
+                    for a in 0..nn {
+                        let row = view.row(vals.node[a] as usize);
+                        row[slots].0 += c.m[p] * vals.w[a];
+                        row[slots].1 += 1;
+                        for b in 0..nn {
+                            row[pair_slot(a, b)].0 += vals.w[a] * vals.w[b];
+                        }
+                    }
+                }
+            });
+            rows
+        })
+    };
+    let one = run(1);
+    prop_assert!(one == run(3), "1-thread and 3-thread scatters differ");
+    let visits: u32 = (0..st.num_nodes())
+        .map(|i| one[i * (slots + 1) + slots].1)
+        .sum();
+    prop_assert_eq!(
+        visits as usize,
+        c.x.len() * nn,
+        "every particle-node pair once"
+    );
+    for i in 0..st.num_nodes() {
+        let m = one[i * (slots + 1) + slots].0;
+        prop_assert!(
+            (m - mass[i]).abs() <= 1e-12 * (1.0 + mass[i]),
+            "node {} mass",
+            i
+        );
+        for e in 0..slots {
+            let (got, want) = (one[i * (slots + 1) + e].0, pairs[i * slots + e]);
+            prop_assert!(
+                (got - want).abs() <= 1e-12,
+                "node {} slot {}: {} vs {}",
+                i,
+                e,
+                got,
+                want
+            );
+        }
+    }
+    Ok(())
+}
+
 macro_rules! props {
     ($modname:ident, $d:literal) => {
         mod $modname {
@@ -463,6 +560,10 @@ macro_rules! props {
                 #[test]
                 fn jacobians_of_position_and_f(c in cloud::<$d>(30), f in matrix::<$d>(0.3)) {
                     jacobians(&c, f)?;
+                }
+                #[test]
+                fn row_scatter_is_race_free_and_complete(c in cloud::<$d>(400)) {
+                    scatter_rows(&c)?;
                 }
                 #[test]
                 fn parallel_equals_serial(c in cloud::<$d>(3000)) {

@@ -35,6 +35,12 @@ pub struct Metrics {
     pub newton_iterations: usize,
     /// Friction iterations of the step.
     pub friction_iterations: usize,
+    /// Active contact terms at the end of the step.
+    pub contact_terms: usize,
+    /// Line-search halvings over the step's Newton iterations.
+    pub backtracks: usize,
+    /// Newton iterations whose initial step was cut by CCD.
+    pub ccd_limited: usize,
     /// Wall-clock seconds of the step.
     pub wall_s: f64,
 }
@@ -49,7 +55,9 @@ pub fn csv_header<const D: usize>() -> String {
     } else {
         h.push_str(",angular_momentum");
     }
-    h.push_str(",min_distance,penetrations,newton_iterations,friction_iterations,wall_s");
+    h.push_str(
+        ",min_distance,penetrations,newton_iterations,friction_iterations,contact_terms,backtracks,ccd_limited,wall_s",
+    );
     h
 }
 
@@ -81,11 +89,14 @@ impl Metrics {
             r.push_str(&format!(",{:.12e}", self.angular_momentum[2]));
         }
         r.push_str(&format!(
-            ",{:.9e},{},{},{},{:.6e}",
+            ",{:.9e},{},{},{},{},{},{},{:.6e}",
             self.min_distance,
             self.penetrations,
             self.newton_iterations,
             self.friction_iterations,
+            self.contact_terms,
+            self.backtracks,
+            self.ccd_limited,
             self.wall_s
         ));
         r

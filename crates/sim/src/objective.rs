@@ -18,6 +18,7 @@ use femp_kernels::transfer;
 use femp_solver::{Objective, StepBound, StepLimit, Triplets};
 use nalgebra::{SMatrix, SVector};
 use rayon::prelude::*;
+use std::time::Instant;
 
 use crate::world::{FemBody, Mpm, Pair, Points};
 
@@ -34,51 +35,111 @@ pub struct Penalty<const D: usize> {
     pub k: f64,
 }
 
+/// Wall-clock seconds spent in the parts of the objective, accumulated over a step.
+#[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize)]
+pub struct ObjectiveTiming {
+    /// Particle positions and deformation gradients from the grid DOFs (every evaluation).
+    pub unpack_s: f64,
+    /// Energy evaluations (line search), excluding unpacking.
+    pub energy_s: f64,
+    /// MPM elasticity: gradient and Hessian (tangents, chain rule, scatter to the grid).
+    pub mpm_s: f64,
+    /// FEM elasticity: gradient and Hessian.
+    pub fem_s: f64,
+    /// Contact and friction: broad phase, terms, derivatives, scatter.
+    pub contact_s: f64,
+    /// Grid Hessian blocks to triplets.
+    pub emit_s: f64,
+    /// Continuous collision detection of the line-search filter.
+    pub ccd_s: f64,
+    /// det F > 0 bounds of the line-search filter (particles and elements).
+    pub inversion_s: f64,
+}
+
+impl ObjectiveTiming {
+    /// Add another timing.
+    pub fn add(&mut self, o: &Self) {
+        self.unpack_s += o.unpack_s;
+        self.energy_s += o.energy_s;
+        self.mpm_s += o.mpm_s;
+        self.fem_s += o.fem_s;
+        self.contact_s += o.contact_s;
+        self.emit_s += o.emit_s;
+        self.ccd_s += o.ccd_s;
+        self.inversion_s += o.inversion_s;
+    }
+}
+
+/// Seconds since `clock`, and restart it.
+#[inline]
+fn lap(clock: &mut Instant) -> f64 {
+    let now = Instant::now();
+    let dt = now.duration_since(*clock).as_secs_f64();
+    *clock = now;
+    dt
+}
+
+/// One slot of a grid node's Hessian row: the block coupling it to one neighbour.
+#[derive(Clone, Copy)]
+struct HBlock<const D: usize> {
+    m: SMatrix<f64, D, D>,
+    nbr: u32,
+}
+
 /// Grid-node Hessian blocks stored by node and neighbour offset (`δ ∈ [−2, 2]^D` for the
-/// 3-node kernel): every particle's stencil couples only such pairs.
+/// 3-node kernel): every particle's stencil couples only such pairs, so a particle's `N^D × N^D`
+/// blocks land in fixed slots (a table from the stencil's per-axis offsets, no look-up), and
+/// particle groups fill their nodes' rows in parallel without races
+/// ([`Stencils::par_scatter_rows`](femp_kernels::Stencils::par_scatter_rows)).
 pub struct GridHessian<const D: usize> {
     slots: usize,
-    blocks: Vec<SMatrix<f64, D, D>>,
-    nbr: Vec<u32>,
+    rows: Vec<HBlock<D>>,
+    /// `pair_slot[a·N^D + b]`: the slot of stencil entry `b` in the row of entry `a`.
+    pair_slot: Vec<u16>,
 }
 
 impl<const D: usize> GridHessian<D> {
     fn new() -> Self {
         Self {
-            slots: 5usize.pow(D as u32),
-            blocks: Vec::new(),
-            nbr: Vec::new(),
+            slots: 0,
+            rows: Vec::new(),
+            pair_slot: Vec::new(),
         }
     }
 
-    fn reset(&mut self, n: usize) {
-        self.blocks.clear();
-        self.blocks.resize(n * self.slots, SMatrix::zeros());
-        self.nbr.clear();
-        self.nbr.resize(n * self.slots, u32::MAX);
-    }
-
-    #[inline]
-    fn add(&mut self, i: usize, j: usize, ci: &[i64; D], cj: &[i64; D], b: &SMatrix<f64, D, D>) {
-        let mut enc = 0usize;
-        let mut mul = 1usize;
-        for a in 0..D {
-            enc += ((cj[a] - ci[a] + 2) as usize) * mul;
-            mul *= 5;
+    /// Clear for `n` nodes with stencils whose per-axis offsets are `axes` (`0..npa`).
+    fn reset(&mut self, n: usize, axes: &[[u8; D]], npa: usize) {
+        let span = 2 * npa - 1;
+        self.slots = span.pow(D as u32);
+        let nn = axes.len();
+        self.pair_slot.clear();
+        for a in 0..nn {
+            for b in 0..nn {
+                let mut e = 0usize;
+                for k in (0..D).rev() {
+                    e = e * span + (axes[b][k] as usize + npa - 1 - axes[a][k] as usize);
+                }
+                self.pair_slot.push(e as u16);
+            }
         }
-        let k = i * self.slots + enc;
-        self.blocks[k] += b;
-        self.nbr[k] = j as u32;
+        self.rows.clear();
+        self.rows.resize(
+            n * self.slots,
+            HBlock {
+                m: SMatrix::zeros(),
+                nbr: u32::MAX,
+            },
+        );
     }
 
     fn emit(&self, h: &mut Triplets) {
-        for (k, &j) in self.nbr.iter().enumerate() {
-            if j != u32::MAX {
+        h.reserve(self.rows.iter().filter(|b| b.nbr != u32::MAX).count() * D * D);
+        for (k, b) in self.rows.iter().enumerate() {
+            if b.nbr != u32::MAX {
                 let i = k / self.slots;
-                let b = &self.blocks[k];
                 for r in 0..D {
                     for c in 0..D {
-                        h.push(i * D + r, j as usize * D + c, b[(r, c)]);
+                        h.push(i * D + r, b.nbr as usize * D + c, b.m[(r, c)]);
                     }
                 }
             }
@@ -113,6 +174,11 @@ pub struct StepObjective<'a, const D: usize> {
     terms: Vec<ContactTerm>,
     ders: Vec<TermDerivatives<D>>,
     fem_trip: Vec<Triplet>,
+    node_force: Vec<SVector<f64, D>>,
+    /// The x the scratch state was last unpacked at.
+    unpacked: Vec<f64>,
+    /// Where the time went.
+    pub(crate) timing: ObjectiveTiming,
     /// Number of active contact terms and smallest contact distance at the last gradient.
     pub(crate) last_contacts: (usize, f64),
 }
@@ -156,6 +222,9 @@ impl<'a, const D: usize> StepObjective<'a, D> {
             terms: Vec::new(),
             ders: Vec::new(),
             fem_trip: Vec::new(),
+            node_force: Vec::new(),
+            unpacked: Vec::new(),
+            timing: ObjectiveTiming::default(),
             last_contacts: (0, f64::INFINITY),
         }
     }
@@ -167,6 +236,18 @@ impl<'a, const D: usize> StepObjective<'a, D> {
 
     /// Update the scratch state (grid displacements, particle positions and F, FEM positions).
     fn unpack(&mut self, x: &[f64]) {
+        // Newton evaluates gradient, Hessian and step bound at the same x: unpack once.
+        if self.unpacked == x {
+            return;
+        }
+        let clock = Instant::now();
+        self.unpacked.clear();
+        self.unpacked.extend_from_slice(x);
+        self.unpack_impl(x);
+        self.timing.unpack_s += clock.elapsed().as_secs_f64();
+    }
+
+    fn unpack_impl(&mut self, x: &[f64]) {
         if let Some(m) = self.mpm {
             self.u.resize(self.n_grid, SVector::zeros());
             for i in 0..self.n_grid {
@@ -289,21 +370,24 @@ impl<'a, const D: usize> StepObjective<'a, D> {
         }
     }
 
-    /// DOF index of a pair's local point `k`'s stencil: calls `f(dof_base, weight)` for each
-    /// DOF block the point's position depends on (grid nodes for MPM, one vertex for FEM).
-    fn point_dofs(&self, pair: &Pair<D>, k: usize, mut f: impl FnMut(usize, f64)) {
+    /// The DOF blocks a pair's local point `k` depends on: calls `f(dof_base, weight, entry)`
+    /// for each (grid nodes of its stencil with non-zero weight for MPM, `entry` the stencil
+    /// entry; its one vertex for FEM, `entry` 0).
+    fn point_dofs(&self, pair: &Pair<D>, k: usize, mut f: impl FnMut(usize, f64, usize)) {
         match &pair.points {
             Points::Mpm { range } => {
                 let m = self.mpm.expect("MPM pair");
+                let mut e = 0;
                 m.stencils.particle(range.0 + k).for_each(|i, w, _| {
                     if w != 0.0 {
-                        f(i * D, w)
+                        f(i * D, w, e)
                     }
+                    e += 1;
                 });
             }
             Points::Fem { body } => {
                 let v = self.fem[*body].boundary.vertices()[k];
-                f(self.fem_offset[*body] + v * D, 1.0);
+                f(self.fem_offset[*body] + v * D, 1.0, 0);
             }
         }
     }
@@ -322,7 +406,7 @@ impl<'a, const D: usize> StepObjective<'a, D> {
         if let Some(g) = g {
             for d in ders {
                 let gq = d.grad[0] * w;
-                self.point_dofs(pair, d.particle as usize, |base, wt| {
+                self.point_dofs(pair, d.particle as usize, |base, wt, _| {
                     for a in 0..D {
                         g[base + a] += wt * gq[a];
                     }
@@ -337,31 +421,32 @@ impl<'a, const D: usize> StepObjective<'a, D> {
         }
         if let Some(h) = h {
             let mpm_points = matches!(pair.points, Points::Mpm { .. });
+            let mut pdofs: Vec<(usize, f64, usize)> = Vec::with_capacity(27);
+            let nn = self.mpm.map_or(0, |m| m.stencils.stencil_len());
             for d in ders {
                 // Point's DOF blocks with weights.
-                let mut pdofs: Vec<(usize, f64)> = Vec::with_capacity(27);
-                self.point_dofs(pair, d.particle as usize, |b, wt| pdofs.push((b, wt)));
+                pdofs.clear();
+                self.point_dofs(pair, d.particle as usize, |b, wt, e| pdofs.push((b, wt, e)));
                 let hqq = d.hess[0][0] * w;
                 if mpm_points {
-                    let st = &self.mpm.expect("MPM pair").stencils;
-                    for &(ba, wa) in &pdofs {
-                        let (ia, ca) = (ba / D, st.node_index(ba / D));
-                        for &(bb, wb) in &pdofs {
-                            let ib = bb / D;
-                            self.gh
-                                .add(ia, ib, &ca, &st.node_index(ib), &(hqq * (wa * wb)));
+                    let gh = &mut self.gh;
+                    for &(ba, wa, ea) in &pdofs {
+                        for &(bb, wb, eb) in &pdofs {
+                            let k = (ba / D) * gh.slots + gh.pair_slot[ea * nn + eb] as usize;
+                            gh.rows[k].m += hqq * (wa * wb);
+                            gh.rows[k].nbr = (bb / D) as u32;
                         }
                     }
                 } else {
-                    for &(ba, wa) in &pdofs {
-                        for &(bb, wb) in &pdofs {
+                    for &(ba, wa, _) in &pdofs {
+                        for &(bb, wb, _) in &pdofs {
                             push_block(h, ba, bb, &(hqq * (wa * wb)));
                         }
                     }
                 }
                 for s in 1..d.n {
                     let bs = boff + d.vertices[s - 1] as usize * D;
-                    for &(ba, wa) in &pdofs {
+                    for &(ba, wa, _) in &pdofs {
                         push_block(h, ba, bs, &(d.hess[0][s] * (w * wa)));
                         push_block(h, bs, ba, &(d.hess[s][0] * (w * wa)));
                     }
@@ -391,23 +476,8 @@ impl<'a, const D: usize> StepObjective<'a, D> {
         }
         (n, dmin)
     }
-}
 
-#[inline]
-fn push_block<const D: usize>(h: &mut Triplets, r: usize, c: usize, b: &SMatrix<f64, D, D>) {
-    for i in 0..D {
-        for j in 0..D {
-            h.push(r + i, c + j, b[(i, j)]);
-        }
-    }
-}
-
-impl<const D: usize> Objective for StepObjective<'_, D> {
-    fn num_dofs(&self) -> usize {
-        self.n_dofs
-    }
-
-    fn energy(&mut self, x: &[f64]) -> f64 {
+    fn energy_impl(&mut self, x: &[f64]) -> f64 {
         self.unpack(x);
         let w = self.w;
         // Inertia and gravity.
@@ -456,9 +526,32 @@ impl<const D: usize> Objective for StepObjective<'_, D> {
         }
         e
     }
+}
+
+#[inline]
+fn push_block<const D: usize>(h: &mut Triplets, r: usize, c: usize, b: &SMatrix<f64, D, D>) {
+    for i in 0..D {
+        for j in 0..D {
+            h.push(r + i, c + j, b[(i, j)]);
+        }
+    }
+}
+
+impl<const D: usize> Objective for StepObjective<'_, D> {
+    fn num_dofs(&self) -> usize {
+        self.n_dofs
+    }
+
+    fn energy(&mut self, x: &[f64]) -> f64 {
+        let clock = Instant::now();
+        let e = self.energy_impl(x);
+        self.timing.energy_s += clock.elapsed().as_secs_f64();
+        e
+    }
 
     fn gradient(&mut self, x: &[f64], g: &mut [f64]) {
         self.unpack(x);
+        let mut clock = Instant::now();
         let w = self.w;
         for d in 0..self.n_dofs {
             g[d] = self.mass[d] * (x[d] - self.x_hat[d]) - w * self.mass[d] * self.gravity[d % D];
@@ -470,20 +563,29 @@ impl<const D: usize> Objective for StepObjective<'_, D> {
             }
         }
         if let Some(m) = self.mpm {
+            // Node forces Σ_p V_p P(F_p) F_pⁿᵀ ∇w_ip, particle groups in parallel.
             let st = &m.stencils;
-            // Per-particle node forces, then a serial scatter (no races).
-            for p in 0..m.x.len() {
-                let f = &self.fq[p];
-                let pk = m.bodies[m.body[p] as usize].material.first_piola(f) * (w * m.volume[p]);
-                let ft = m.f[p].transpose();
-                st.particle(p).for_each(|i, _, grad| {
-                    let gi = pk * (ft * grad);
-                    for a in 0..D {
-                        g[i * D + a] += gi[a];
-                    }
-                });
+            let fq = &self.fq;
+            self.node_force.clear();
+            self.node_force.resize(self.n_grid, SVector::zeros());
+            st.par_scatter_rows(&mut self.node_force, 1, |particles, rows| {
+                for &p in particles {
+                    let p = p as usize;
+                    let pk = m.bodies[m.body[p] as usize].material.first_piola(&fq[p])
+                        * (w * m.volume[p]);
+                    let ft = m.f[p].transpose();
+                    st.particle(p).for_each(|i, _, grad| {
+                        rows.row(i)[0] += pk * (ft * grad);
+                    });
+                }
+            });
+            for (i, f) in self.node_force.iter().enumerate() {
+                for a in 0..D {
+                    g[i * D + a] += f[a];
+                }
             }
         }
+        self.timing.mpm_s += lap(&mut clock);
         for b in 0..self.fem.len() {
             if self.fem[b].fully_prescribed {
                 continue;
@@ -516,6 +618,7 @@ impl<const D: usize> Objective for StepObjective<'_, D> {
                 }
             }
         }
+        self.timing.fem_s += lap(&mut clock);
         let mut count = 0;
         let mut dmin = f64::INFINITY;
         for k in 0..self.pairs.len() {
@@ -545,11 +648,13 @@ impl<const D: usize> Objective for StepObjective<'_, D> {
             }
             self.ders = ders;
         }
+        self.timing.contact_s += lap(&mut clock);
         self.last_contacts = (count, dmin);
     }
 
     fn hessian(&mut self, x: &[f64], h: &mut Triplets) {
         self.unpack(x);
+        let mut clock = Instant::now();
         let w = self.w;
         for d in 0..self.n_dofs {
             h.push(d, d, self.mass[d]);
@@ -561,39 +666,46 @@ impl<const D: usize> Objective for StepObjective<'_, D> {
                 }
             }
         }
-        self.gh.reset(self.n_grid);
         if let Some(m) = self.mpm {
             let st = &m.stencils;
+            self.gh.reset(
+                self.n_grid,
+                st.stencil_axes(),
+                st.grid().kernel().nodes_per_axis(),
+            );
+            // Particle Hessians V_p Gᵀ A_p G (A_p the PSD-projected tangent), particle groups
+            // in parallel, each block added into its fixed slot.
             let nn = st.stencil_len();
-            let mut gvec = vec![SVector::<f64, D>::zeros(); nn];
-            let mut ids = vec![0usize; nn];
-            let mut blocks = vec![SMatrix::<f64, D, D>::zeros(); nn * nn];
-            for p in 0..m.x.len() {
-                let t: Tangent<D> = m.bodies[m.body[p] as usize]
-                    .material
-                    .tangent_psd(&self.fq[p]);
-                let ft = m.f[p].transpose();
-                let mut k = 0;
-                st.particle(p).for_each(|i, _, grad| {
-                    ids[k] = i;
-                    gvec[k] = ft * grad;
-                    k += 1;
-                });
-                chain_hessian(&t, &gvec, w * m.volume[p], &mut blocks);
-                for a in 0..nn {
-                    let ca = st.node_index(ids[a]);
-                    for b in 0..nn {
-                        self.gh.add(
-                            ids[a],
-                            ids[b],
-                            &ca,
-                            &st.node_index(ids[b]),
-                            &blocks[a * nn + b],
-                        );
+            let fq = &self.fq;
+            let (slots, pair_slot) = (self.gh.slots, &self.gh.pair_slot);
+            st.par_scatter_rows(&mut self.gh.rows, slots, |particles, rows| {
+                // Per group (hundreds of particles), not per particle.
+                let mut gvec = vec![SVector::<f64, D>::zeros(); nn];
+                let mut ids = vec![0usize; nn];
+                let mut blocks = vec![SMatrix::<f64, D, D>::zeros(); nn * nn];
+                for &p in particles {
+                    let p = p as usize;
+                    let t: Tangent<D> = m.bodies[m.body[p] as usize].material.tangent_psd(&fq[p]);
+                    let ft = m.f[p].transpose();
+                    let mut k = 0;
+                    st.particle(p).for_each(|i, _, grad| {
+                        ids[k] = i;
+                        gvec[k] = ft * grad;
+                        k += 1;
+                    });
+                    chain_hessian(&t, &gvec, w * m.volume[p], &mut blocks);
+                    for a in 0..nn {
+                        let row = rows.row(ids[a]);
+                        for b in 0..nn {
+                            let slot = &mut row[pair_slot[a * nn + b] as usize];
+                            slot.m += blocks[a * nn + b];
+                            slot.nbr = ids[b] as u32;
+                        }
                     }
                 }
-            }
+            });
         }
+        self.timing.mpm_s += lap(&mut clock);
         for b in 0..self.fem.len() {
             if self.fem[b].fully_prescribed {
                 continue;
@@ -611,6 +723,7 @@ impl<const D: usize> Objective for StepObjective<'_, D> {
             }
             self.fem_trip = trip;
         }
+        self.timing.fem_s += lap(&mut clock);
         for k in 0..self.pairs.len() {
             if self.collect(k).is_err() {
                 continue;
@@ -634,11 +747,16 @@ impl<const D: usize> Objective for StepObjective<'_, D> {
             }
             self.ders = ders;
         }
-        self.gh.emit(h);
+        self.timing.contact_s += lap(&mut clock);
+        if self.mpm.is_some() {
+            self.gh.emit(h);
+        }
+        self.timing.emit_s += lap(&mut clock);
     }
 
     fn max_step(&mut self, x: &[f64], p: &[f64]) -> StepBound {
         self.unpack(x);
+        let mut clock = Instant::now();
         let mut best = StepBound::UNLIMITED;
         let mut take = |alpha: f64, limit: StepLimit| {
             if alpha < best.alpha {
@@ -684,6 +802,7 @@ impl<const D: usize> Objective for StepObjective<'_, D> {
                 take(a, StepLimit::DetF);
             }
         }
+        self.timing.inversion_s += lap(&mut clock);
         // CCD of every pair along the full step.
         for pair in self.pairs {
             let x0 = self.points(pair);
@@ -720,6 +839,189 @@ impl<const D: usize> Objective for StepObjective<'_, D> {
             );
             take(alpha, StepLimit::Ccd);
         }
+        self.timing.ccd_s += lap(&mut clock);
         best
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    //! The step objective's derivatives against central finite differences, on scenes that
+    //! exercise every term: MPM and FEM elasticity, inertia, gravity, barrier contact of
+    //! particles and of FEM vertices, lagged friction, and an oblique slip penalty.
+
+    use std::path::Path;
+
+    use femp_solver::{Objective, Triplets};
+
+    use crate::scene;
+    use crate::world::World;
+
+    /// Pseudo-random numbers in [−1, 1] (deterministic).
+    fn noise(n: usize, seed: u64) -> Vec<f64> {
+        let mut s = seed;
+        (0..n)
+            .map(|_| {
+                s = s
+                    .wrapping_mul(6364136223846793005)
+                    .wrapping_add(1442695040888963407);
+                ((s >> 11) as f64 / (1u64 << 53) as f64) * 2.0 - 1.0
+            })
+            .collect()
+    }
+
+    fn world<const D: usize>(json: &str) -> World<D> {
+        let s = scene::parse(json, "fd.json", Path::new(".").to_path_buf(), "fd").unwrap();
+        World::<D>::build(s).unwrap()
+    }
+
+    /// A 2D scene: an MPM block whose lowest particles are within d̂ (5 mm) of a free FEM block, a second FEM block
+    /// touching it from the side, friction on both pairs, gravity and an oblique slip wall.
+    const SCENE_2D: &str = r#"{
+      "dimension": 2, "gravity": [0.3, -9.81],
+      "time": { "dt": 0.01, "duration": 1 },
+      "mpm": { "grid_spacing": 0.1 },
+      "bodies": [
+        { "kind": "mpm", "name": "block", "shape": { "box": { "min": [-0.2, -0.02], "max": [0.2, 0.3] } },
+          "material": { "E": 1e4, "nu": 0.3, "rho": 1000 }, "velocity": [0.5, -0.2], "angular_velocity": 1.0 },
+        { "kind": "fem", "name": "base", "mesh": { "rectangle": { "min": [-0.5, -0.2], "max": [0.5, 0.0], "cells": [5, 2] } },
+          "material": { "E": 1e4, "nu": 0.3, "rho": 1000 } },
+        { "kind": "fem", "name": "side", "mesh": { "rectangle": { "min": [0.503, -0.2], "max": [0.7, 0.1], "cells": [2, 3] } },
+          "material": { "model": "linear", "E": 2e4, "nu": 0.2, "rho": 500 } }
+      ],
+      "contact": { "dhat": 0.01, "kappa": 1e3, "friction": 0.4, "eps_v": 0.01 },
+      "boundaries": [ { "shape": { "half_plane": { "point": [-0.6, 0], "normal": [0.8, 0.6] } }, "condition": "slip" } ]
+    }"#;
+
+    /// 3D: one particle per cell (at cell centres, 5 cm above the FEM block) within d̂ = 6 cm.
+    const SCENE_3D: &str = r#"{
+      "dimension": 3, "gravity": [0, 0, -9.81],
+      "time": { "dt": 0.01, "duration": 1 },
+      "mpm": { "grid_spacing": 0.1 },
+      "bodies": [
+        { "kind": "mpm", "name": "block", "shape": { "box": { "min": [-0.1, -0.1, 0.001], "max": [0.1, 0.1, 0.2] } },
+          "particles_per_cell": 1,
+          "material": { "E": 1e4, "nu": 0.3, "rho": 1000 }, "velocity": [0.5, 0, -0.2] },
+        { "kind": "fem", "name": "base", "mesh": { "cuboid": { "min": [-0.3, -0.3, -0.1], "max": [0.3, 0.3, 0.0], "cells": [3, 3, 1] } },
+          "material": { "E": 1e4, "nu": 0.3, "rho": 1000 } }
+      ],
+      "contact": { "dhat": 0.06, "kappa": 1e3, "friction": 0.4, "eps_v": 0.01 }
+    }"#;
+
+    /// Gradient against central differences of the energy at a perturbed feasible state,
+    /// with friction lagged at the start. Returns the number of active contact terms.
+    fn check_gradient<const D: usize>(json: &str, amplitude: f64) -> usize {
+        let mut w = world::<D>(json);
+        let setup = w.setup().unwrap();
+        let mut obj = setup.objective(&w);
+        obj.lag_friction(&setup.x0);
+        let r = noise(setup.n_dofs, 7);
+        let x: Vec<f64> = (0..setup.n_dofs)
+            .map(|d| setup.x0[d] + amplitude * r[d])
+            .collect();
+        let e0 = obj.energy(&x);
+        assert!(e0.is_finite(), "perturbed state infeasible");
+        let mut g = vec![0.0; setup.n_dofs];
+        obj.gradient(&x, &mut g);
+        let (terms, _) = obj.last_contacts;
+        let gmax = g.iter().fold(0.0f64, |a, v| a.max(v.abs()));
+        let h = 1e-7;
+        let mut xp = x.clone();
+        let mut worst = 0.0f64;
+        for d in 0..setup.n_dofs {
+            xp[d] = x[d] + h;
+            let ep = obj.energy(&xp);
+            xp[d] = x[d] - h;
+            let em = obj.energy(&xp);
+            xp[d] = x[d];
+            let fd = (ep - em) / (2.0 * h);
+            let err = (fd - g[d]).abs() / (gmax * 1e-5 + g[d].abs().max(fd.abs()));
+            worst = worst.max(err);
+            assert!(
+                err < 1e-4,
+                "dof {d} of {}: analytic {} vs FD {fd} (|g|max {gmax:e})",
+                setup.n_dofs,
+                g[d]
+            );
+        }
+        assert!(worst.is_finite());
+        terms
+    }
+
+    #[test]
+    fn gradient_matches_finite_differences_2d() {
+        let terms = check_gradient::<2>(SCENE_2D, 1e-4);
+        assert!(
+            terms > 10,
+            "the scene must have active contact terms ({terms})"
+        );
+    }
+
+    #[test]
+    fn gradient_matches_finite_differences_3d() {
+        let terms = check_gradient::<3>(SCENE_3D, 1e-4);
+        assert!(
+            terms >= 4,
+            "the scene must have active contact terms ({terms})"
+        );
+    }
+
+    /// Hessian against central differences of the gradient where no PSD projection acts:
+    /// inertia, stretched elasticity, gravity, penalties (bodies apart, no contact).
+    fn check_hessian<const D: usize>(json: &str) {
+        let mut w = world::<D>(json);
+        let setup = w.setup().unwrap();
+        let n = setup.n_dofs;
+        let mut obj = setup.objective(&w);
+        // A uniform 5 % expansion (every F ≈ 1.05 I, where the neo-Hookean tangent is positive
+        // definite and its projection is the identity) plus a small random perturbation.
+        let r = noise(n, 11);
+        let x: Vec<f64> = (0..n).map(|d| 1.05 * setup.x0[d] + 1e-4 * r[d]).collect();
+        let mut t = Triplets::default();
+        obj.hessian(&x, &mut t);
+        assert_eq!(obj.last_contacts.0, 0, "scene must be contact-free");
+        let mut hd = vec![0.0; n * n];
+        for (r, c, v) in t.iter() {
+            hd[r * n + c] += v;
+        }
+        let hmax = hd.iter().fold(0.0f64, |a, v| a.max(v.abs()));
+        let h = 1e-6;
+        let (mut gp, mut gm) = (vec![0.0; n], vec![0.0; n]);
+        let mut xp = x.clone();
+        for c in 0..n {
+            xp[c] = x[c] + h;
+            gp.iter_mut().for_each(|v| *v = 0.0);
+            obj.gradient(&xp, &mut gp);
+            xp[c] = x[c] - h;
+            gm.iter_mut().for_each(|v| *v = 0.0);
+            obj.gradient(&xp, &mut gm);
+            xp[c] = x[c];
+            for r in 0..n {
+                let fd = (gp[r] - gm[r]) / (2.0 * h);
+                let an = hd[r * n + c];
+                assert!(
+                    (fd - an).abs() <= 1e-5 * hmax + 1e-4 * an.abs(),
+                    "H[{r}][{c}]: analytic {an} vs FD {fd} (max {hmax:e})"
+                );
+            }
+        }
+    }
+
+    #[test]
+    fn hessian_matches_finite_differences_without_contact_2d() {
+        check_hessian::<2>(
+            &SCENE_2D
+                .replace("-0.02], \"max\": [0.2, 0.3]", "0.1], \"max\": [0.2, 0.3]")
+                .replace("0.503", "0.6"),
+        );
+    }
+
+    #[test]
+    fn hessian_matches_finite_differences_without_contact_3d() {
+        check_hessian::<3>(
+            &SCENE_3D
+                .replace("0.001], \"max\"", "0.1], \"max\"")
+                .replace("0.06", "0.01"),
+        );
     }
 }

@@ -46,8 +46,35 @@ pub struct Summary {
     pub particles: usize,
     /// Number of FEM vertices.
     pub fem_vertices: usize,
-    /// Seconds in the solver's assembly, symbolic, numeric, solve and line search.
-    pub solver_seconds: [f64; 5],
+    /// Where the wall-clock time went.
+    pub timing: RunTiming,
+}
+
+/// Where a run's wall-clock time went (seconds, summed over steps). The objective's parts
+/// (`objective`) overlap the solver's `assembly_s` (gradient and Hessian) and `line_search_s`
+/// (energies, CCD, det F bounds).
+#[derive(Clone, Debug, Default, Serialize)]
+pub struct RunTiming {
+    /// Stencil rebuild, particle-to-grid and grid-to-particle transfers, advection.
+    pub transfers_s: f64,
+    /// DOF layout, predictor, boundary conditions, initial guess.
+    pub setup_s: f64,
+    /// Newton: gradient and Hessian evaluation and the sparse matrix build.
+    pub assembly_s: f64,
+    /// Newton: symbolic analysis (ordering) of changed sparsity patterns.
+    pub symbolic_s: f64,
+    /// Newton: numeric Cholesky factorisation.
+    pub numeric_s: f64,
+    /// Newton: triangular solves.
+    pub solve_s: f64,
+    /// Newton: the filtered line search.
+    pub line_search_s: f64,
+    /// The objective's parts.
+    pub objective: crate::objective::ObjectiveTiming,
+    /// Per-step measurements (energies, momenta, penetration check).
+    pub measure_s: f64,
+    /// Writing frames, metrics and progress.
+    pub output_s: f64,
 }
 
 /// Writes a run's files as it goes.

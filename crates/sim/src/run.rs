@@ -102,9 +102,15 @@ pub fn run_with<const D: usize>(
         let t0 = Instant::now();
         match world.step() {
             Ok(report) => {
+                let clock = Instant::now();
                 let mut m = world.measure();
+                summary.timing.measure_s += clock.elapsed().as_secs_f64();
+                let clock = Instant::now();
                 m.newton_iterations = report.newton_iterations;
                 m.friction_iterations = report.friction_iterations;
+                m.contact_terms = report.contact_terms;
+                m.backtracks = report.stats.backtracks;
+                m.ccd_limited = report.stats.limited_by_ccd;
                 m.wall_s = t0.elapsed().as_secs_f64();
                 if report.contact_terms > 0 {
                     m.min_distance = m.min_distance.min(report.min_distance);
@@ -117,15 +123,15 @@ pub fn run_with<const D: usize>(
                 summary.friction_unconverged_steps += usize::from(!report.friction_converged);
                 summary.max_penetrations = summary.max_penetrations.max(m.penetrations);
                 let s = &report.stats;
-                for (acc, v) in summary.solver_seconds.iter_mut().zip([
-                    s.assembly_s,
-                    s.symbolic_s,
-                    s.numeric_s,
-                    s.solve_s,
-                    s.line_search_s,
-                ]) {
-                    *acc += v;
-                }
+                let tm = &mut summary.timing;
+                tm.transfers_s += report.transfers_s;
+                tm.setup_s += report.setup_s;
+                tm.assembly_s += s.assembly_s;
+                tm.symbolic_s += s.symbolic_s;
+                tm.numeric_s += s.numeric_s;
+                tm.solve_s += s.solve_s;
+                tm.line_search_s += s.line_search_s;
+                tm.objective.add(&report.objective);
                 if !opts.no_frames && world.time + 1e-12 >= next_frame {
                     out.frame(&world)?;
                     next_frame += frame_dt;
@@ -148,6 +154,7 @@ pub fn run_with<const D: usize>(
                     );
                     last_line = Instant::now();
                 }
+                summary.timing.output_s += clock.elapsed().as_secs_f64();
                 all.push(m);
             }
             Err(e) => {

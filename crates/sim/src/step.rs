@@ -26,6 +26,12 @@ pub struct StepReport {
     pub min_distance: f64,
     /// Solver statistics summed over the step's solves.
     pub stats: SolveStats,
+    /// Seconds in the transfers (stencils, P2G, G2P, advection).
+    pub transfers_s: f64,
+    /// Seconds setting up the minimisation (DOFs, predictor, boundaries, initial guess).
+    pub setup_s: f64,
+    /// Seconds in the objective's parts.
+    pub objective: crate::objective::ObjectiveTiming,
 }
 
 fn add_stats(acc: &mut SolveStats, s: &SolveStats) {
@@ -46,6 +52,24 @@ fn add_stats(acc: &mut SolveStats, s: &SolveStats) {
     acc.line_search_s += s.line_search_s;
 }
 
+/// The unknowns of one step and what they start from (see [`World::setup`]).
+pub(crate) struct StepSetup<const D: usize> {
+    pub(crate) n_grid: usize,
+    pub(crate) grid_v: Vec<SVector<f64, D>>,
+    pub(crate) grid_x: Vec<SVector<f64, D>>,
+    pub(crate) fem_offset: Vec<usize>,
+    pub(crate) n_dofs: usize,
+    pub(crate) mass: Vec<f64>,
+    pub(crate) x0: Vec<f64>,
+    pub(crate) v0: Vec<f64>,
+    pub(crate) a0: Vec<f64>,
+    pub(crate) fixed: Vec<bool>,
+    pub(crate) target: Vec<f64>,
+    pub(crate) penalties: Vec<Penalty<D>>,
+    pub(crate) x_hat: Vec<f64>,
+    pub(crate) transfers_s: f64,
+}
+
 impl<const D: usize> World<D> {
     /// Advance by one time step.
     pub fn step(&mut self) -> Result<StepReport, SimError> {
@@ -57,7 +81,203 @@ impl<const D: usize> World<D> {
             message,
         };
 
+        let clock = std::time::Instant::now();
+        let StepSetup {
+            n_grid,
+            grid_v,
+            grid_x,
+            fem_offset,
+            n_dofs,
+            mass,
+            x0,
+            v0,
+            a0,
+            fixed,
+            target,
+            penalties,
+            x_hat,
+            transfers_s,
+        } = self.setup()?;
+        let clock_setup = clock.elapsed().as_secs_f64() - transfers_s;
+        let clock = std::time::Instant::now();
+        // 3. The friction loop around the minimisation.
+        let params = NewtonParams {
+            tolerance: self.scene.spec.solver.tolerance,
+            dt,
+            max_iterations: self.scene.spec.solver.max_newton_iterations,
+            ordering: if D == 3 && n_dofs > 30_000 {
+                Ordering::NestedDissection { block: D }
+            } else {
+                Ordering::Amd
+            },
+            threads: Threads::Auto,
+            ..Default::default()
+        };
+        let w = self.integrator.weight(dt);
+        let any_friction = self.pairs.iter().any(|p| p.friction.mu > 0.0);
+        let mut report = StepReport {
+            friction_converged: true,
+            transfers_s,
+            ..Default::default()
+        };
+        let mut x = x0.clone();
+        // Start the fixed DOFs where they are; Newton moves them to their targets.
+        let mpm_ref = self.mpm.as_ref();
+        let mut obj = StepObjective::new(
+            mpm_ref,
+            &self.fem,
+            &self.pairs,
+            n_grid,
+            fem_offset.clone(),
+            n_dofs,
+            &mass,
+            &x_hat,
+            &x0,
+            w,
+            self.gravity,
+            &penalties,
+        );
+        // Initial guess: the integrator's predictor (targets for prescribed DOFs) when the
+        // straight path from xⁿ to it is feasible (no crossing, no inversion); xⁿ otherwise.
+        {
+            let mut dir = vec![0.0; n_dofs];
+            for d in 0..n_dofs {
+                dir[d] = if fixed[d] { target[d] } else { x_hat[d] } - x0[d];
+            }
+            let bound = femp_solver::Objective::max_step(&mut obj, &x0, &dir);
+            if bound.limit.is_none() && bound.alpha >= 1.0 {
+                for d in 0..n_dofs {
+                    x[d] = if fixed[d] { target[d] } else { x0[d] + dir[d] };
+                }
+                if !femp_solver::Objective::energy(&mut obj, &x).is_finite() {
+                    x.copy_from_slice(&x0);
+                }
+            }
+        }
+        report.setup_s = clock_setup + clock.elapsed().as_secs_f64();
+        if any_friction {
+            // Algorithm 1 lags the friction operator at the start of the step.
+            obj.lag_friction(&x0);
+        }
+        let max_fric = if any_friction {
+            self.scene.spec.solver.max_friction_iterations
+        } else {
+            1
+        };
+        let mut prev = x.clone();
+        for j in 0..max_fric {
+            report.friction_iterations = j + 1;
+            let stats = self
+                .newton
+                .minimize_to(&mut obj, &mut x, &fixed, &target, &params)
+                .map_err(|e| SimError::StepFailed {
+                    step: self.step,
+                    time: self.time,
+                    message: format!(
+                        "{e}{}",
+                        if any_friction {
+                            format!(" (friction iteration {})", j + 1)
+                        } else {
+                            String::new()
+                        }
+                    ),
+                })?;
+            report.newton_iterations += stats.iterations;
+            add_stats(&mut report.stats, &stats);
+            if !any_friction {
+                break;
+            }
+            let change = x
+                .iter()
+                .zip(&prev)
+                .map(|(a, b)| (a - b).abs())
+                .fold(0.0, f64::max)
+                / dt;
+            if j > 0 && change < params.tolerance {
+                break;
+            }
+            if j + 1 == max_fric {
+                report.friction_converged = false;
+            }
+            prev.copy_from_slice(&x);
+            obj.lag_friction(&x);
+        }
+        let (nterms, dmin) = obj.contact_summary(&x);
+        report.contact_terms = nterms;
+        report.min_distance = dmin;
+        report.objective = obj.timing;
+        drop(obj);
+        if x.iter().any(|v| !v.is_finite()) {
+            return Err(fail(
+                self,
+                "the solution contains non-finite positions".into(),
+            ));
+        }
+
+        // 4. Velocities and accelerations.
+        let mut v1 = v0.clone();
+        let mut a1 = a0.clone();
+        self.integrator.update(dt, &x, &x_hat, &mut v1, &mut a1);
+
+        // 5. Grid-to-particle and advection.
+        let clock = std::time::Instant::now();
+        if let Some(m) = self.mpm.as_mut() {
+            let st = &m.stencils;
+            let gv1: Vec<SVector<f64, D>> = (0..n_grid)
+                .map(|i| SVector::from_column_slice(&v1[i * D..i * D + D]))
+                .collect();
+            let gu: Vec<SVector<f64, D>> = (0..n_grid)
+                .map(|i| SVector::from_column_slice(&x[i * D..i * D + D]) - grid_x[i])
+                .collect();
+            let res = match m.transfer {
+                Transfer::Apic => transfer::g2p_apic(st, &gv1, Some(&gu), &mut m.v, &mut m.b),
+                Transfer::Pic => transfer::g2p_pic(st, &gv1, &mut m.v),
+                Transfer::Flip(r) => transfer::g2p_flip(st, &gv1, &grid_v, r, &mut m.v),
+            };
+            res.and_then(|_| transfer::advect(st, &gu, &mut m.x, Some(&mut m.f)))
+                .map_err(|e| SimError::StepFailed {
+                    step: self.step,
+                    time: self.time,
+                    message: e.to_string(),
+                })?;
+            if self.integrator.needs_acceleration() {
+                let ga1: Vec<SVector<f64, D>> = (0..n_grid)
+                    .map(|i| SVector::from_column_slice(&a1[i * D..i * D + D]))
+                    .collect();
+                transfer::interpolate(st, &ga1, &mut m.a).map_err(|e| SimError::StepFailed {
+                    step: self.step,
+                    time: self.time,
+                    message: e.to_string(),
+                })?;
+            }
+            if let Some(bad) =
+                m.f.iter()
+                    .position(|f: &SMatrix<f64, D, D>| !(femp_fem::linalg::det(f) > 0.0))
+            {
+                return Err(fail(self, format!("particle {bad} inverted (det F ≤ 0)")));
+            }
+        }
+        report.transfers_s += clock.elapsed().as_secs_f64();
+        for (b, body) in self.fem.iter_mut().enumerate() {
+            for vtx in 0..body.x.len() {
+                let d = fem_offset[b] + vtx * D;
+                body.x[vtx] = SVector::from_column_slice(&x[d..d + D]);
+                body.v[vtx] = SVector::from_column_slice(&v1[d..d + D]);
+                body.a[vtx] = SVector::from_column_slice(&a1[d..d + D]);
+            }
+        }
+        self.time = t1;
+        self.step += 1;
+        Ok(report)
+    }
+
+    /// Steps 1–2 of a time step: particle-to-grid, the DOF layout (active grid nodes, then FEM
+    /// vertices), prescribed targets, level-set boundary conditions and the predictor.
+    pub(crate) fn setup(&mut self) -> Result<StepSetup<D>, SimError> {
+        let dt = self.dt;
+        let t1 = self.time + dt;
         // 1. Particle-to-grid.
+        let clock = std::time::Instant::now();
         let mut n_grid = 0;
         let mut grid_m: Vec<f64> = Vec::new();
         let mut grid_v: Vec<SVector<f64, D>> = Vec::new();
@@ -97,6 +317,7 @@ impl<const D: usize> World<D> {
             grid_x = (0..n_grid).map(|i| m.stencils.node_position(i)).collect();
         }
 
+        let transfers_s = clock.elapsed().as_secs_f64();
         // 2. DOF layout: grid nodes, then FEM vertices body by body.
         let mut fem_offset = Vec::with_capacity(self.fem.len());
         let mut n_dofs = n_grid * D;
@@ -185,151 +406,43 @@ impl<const D: usize> World<D> {
         let mut x_hat = vec![0.0; n_dofs];
         self.integrator.predictor(dt, &x0, &v0, &a0, &mut x_hat);
 
-        // 3. The friction loop around the minimisation.
-        let params = NewtonParams {
-            tolerance: self.scene.spec.solver.tolerance,
-            dt,
-            max_iterations: self.scene.spec.solver.max_newton_iterations,
-            ordering: if D == 3 && n_dofs > 30_000 {
-                Ordering::NestedDissection { block: D }
-            } else {
-                Ordering::Amd
-            },
-            threads: Threads::Auto,
-            ..Default::default()
-        };
-        let w = self.integrator.weight(dt);
-        let any_friction = self.pairs.iter().any(|p| p.friction.mu > 0.0);
-        let mut report = StepReport {
-            friction_converged: true,
-            ..Default::default()
-        };
-        let mut x = x0.clone();
-        // Start the fixed DOFs where they are; Newton moves them to their targets.
-        let mpm_ref = self.mpm.as_ref();
-        let mut obj = StepObjective::new(
-            mpm_ref,
-            &self.fem,
-            &self.pairs,
+        Ok(StepSetup {
             n_grid,
-            fem_offset.clone(),
+            grid_v,
+            grid_x,
+            fem_offset,
             n_dofs,
-            &mass,
-            &x_hat,
-            &x0,
-            w,
-            self.gravity,
-            &penalties,
-        );
-        if any_friction {
-            obj.lag_friction(&x);
-        }
-        let max_fric = if any_friction {
-            self.scene.spec.solver.max_friction_iterations
-        } else {
-            1
-        };
-        let mut prev = x.clone();
-        for j in 0..max_fric {
-            report.friction_iterations = j + 1;
-            let stats = self
-                .newton
-                .minimize_to(&mut obj, &mut x, &fixed, &target, &params)
-                .map_err(|e| SimError::StepFailed {
-                    step: self.step,
-                    time: self.time,
-                    message: format!(
-                        "{e}{}",
-                        if any_friction {
-                            format!(" (friction iteration {})", j + 1)
-                        } else {
-                            String::new()
-                        }
-                    ),
-                })?;
-            report.newton_iterations += stats.iterations;
-            add_stats(&mut report.stats, &stats);
-            if !any_friction {
-                break;
-            }
-            let change = x
-                .iter()
-                .zip(&prev)
-                .map(|(a, b)| (a - b).abs())
-                .fold(0.0, f64::max)
-                / dt;
-            if j > 0 && change < params.tolerance {
-                break;
-            }
-            if j + 1 == max_fric {
-                report.friction_converged = false;
-            }
-            prev.copy_from_slice(&x);
-            obj.lag_friction(&x);
-        }
-        let (nterms, dmin) = obj.contact_summary(&x);
-        report.contact_terms = nterms;
-        report.min_distance = dmin;
-        drop(obj);
-        if x.iter().any(|v| !v.is_finite()) {
-            return Err(fail(
-                self,
-                "the solution contains non-finite positions".into(),
-            ));
-        }
+            mass,
+            x0,
+            v0,
+            a0,
+            fixed,
+            target,
+            penalties,
+            x_hat,
+            transfers_s,
+        })
+    }
+}
 
-        // 4. Velocities and accelerations.
-        let mut v1 = v0.clone();
-        let mut a1 = a0.clone();
-        self.integrator.update(dt, &x, &x_hat, &mut v1, &mut a1);
-
-        // 5. Grid-to-particle and advection.
-        if let Some(m) = self.mpm.as_mut() {
-            let st = &m.stencils;
-            let gv1: Vec<SVector<f64, D>> = (0..n_grid)
-                .map(|i| SVector::from_column_slice(&v1[i * D..i * D + D]))
-                .collect();
-            let gu: Vec<SVector<f64, D>> = (0..n_grid)
-                .map(|i| SVector::from_column_slice(&x[i * D..i * D + D]) - grid_x[i])
-                .collect();
-            let res = match m.transfer {
-                Transfer::Apic => transfer::g2p_apic(st, &gv1, Some(&gu), &mut m.v, &mut m.b),
-                Transfer::Pic => transfer::g2p_pic(st, &gv1, &mut m.v),
-                Transfer::Flip(r) => transfer::g2p_flip(st, &gv1, &grid_v, r, &mut m.v),
-            };
-            res.and_then(|_| transfer::advect(st, &gu, &mut m.x, Some(&mut m.f)))
-                .map_err(|e| SimError::StepFailed {
-                    step: self.step,
-                    time: self.time,
-                    message: e.to_string(),
-                })?;
-            if self.integrator.needs_acceleration() {
-                let ga1: Vec<SVector<f64, D>> = (0..n_grid)
-                    .map(|i| SVector::from_column_slice(&a1[i * D..i * D + D]))
-                    .collect();
-                transfer::interpolate(st, &ga1, &mut m.a).map_err(|e| SimError::StepFailed {
-                    step: self.step,
-                    time: self.time,
-                    message: e.to_string(),
-                })?;
-            }
-            if let Some(bad) =
-                m.f.iter()
-                    .position(|f: &SMatrix<f64, D, D>| !(femp_fem::linalg::det(f) > 0.0))
-            {
-                return Err(fail(self, format!("particle {bad} inverted (det F ≤ 0)")));
-            }
-        }
-        for (b, body) in self.fem.iter_mut().enumerate() {
-            for vtx in 0..body.x.len() {
-                let d = fem_offset[b] + vtx * D;
-                body.x[vtx] = SVector::from_column_slice(&x[d..d + D]);
-                body.v[vtx] = SVector::from_column_slice(&v1[d..d + D]);
-                body.a[vtx] = SVector::from_column_slice(&a1[d..d + D]);
-            }
-        }
-        self.time = t1;
-        self.step += 1;
-        Ok(report)
+#[cfg(test)]
+impl<const D: usize> StepSetup<D> {
+    /// The incremental potential of this step over `world`'s bodies (as [`World::step`]
+    /// builds it from the world's fields).
+    pub(crate) fn objective<'a>(&'a self, world: &'a World<D>) -> StepObjective<'a, D> {
+        StepObjective::new(
+            world.mpm.as_ref(),
+            &world.fem,
+            &world.pairs,
+            self.n_grid,
+            self.fem_offset.clone(),
+            self.n_dofs,
+            &self.mass,
+            &self.x_hat,
+            &self.x0,
+            world.integrator.weight(world.dt),
+            world.gravity,
+            &self.penalties,
+        )
     }
 }

@@ -21,6 +21,15 @@ pub struct Triplets {
 }
 
 impl Triplets {
+    /// The entries `(row, col, value)`, in the order they were pushed (duplicates not merged).
+    pub fn iter(&self) -> impl Iterator<Item = (usize, usize, f64)> + '_ {
+        self.rows
+            .iter()
+            .zip(&self.cols)
+            .zip(&self.vals)
+            .map(|((&r, &c), &v)| (r as usize, c as usize, v))
+    }
+
     /// Remove all entries, keeping the memory.
     pub fn clear(&mut self) {
         self.rows.clear();

@@ -672,7 +672,11 @@ impl Objective for NearNullMode {
     }
     fn gradient(&mut self, x: &[f64], g: &mut [f64]) {
         self.calls += 1;
-        let noise = if self.calls.is_multiple_of(2) { 1.0 } else { -1.0 };
+        let noise = if self.calls.is_multiple_of(2) {
+            1.0
+        } else {
+            -1.0
+        };
         g[0] = x[0];
         g[1] = self.eps * x[1] + noise * self.eta;
     }
