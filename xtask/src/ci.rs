@@ -17,6 +17,7 @@ const STEPS: &[(&str, &[&str])] = &[
         ],
     ),
     ("tests", &["test", "--workspace", "--release"]),
+    ("validate", &["xtask", "validate", "--quick"]),
 ];
 
 pub fn run() -> anyhow::Result<()> {

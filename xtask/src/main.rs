@@ -6,11 +6,23 @@
 //!   non-zero if any failed.
 
 mod ci;
+mod validate;
 
-fn main() -> anyhow::Result<()> {
+fn main() -> std::process::ExitCode {
+    match run() {
+        Ok(()) => std::process::ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("error: {e:#}");
+            std::process::ExitCode::FAILURE
+        }
+    }
+}
+
+fn run() -> anyhow::Result<()> {
     let args: Vec<String> = std::env::args().skip(1).collect();
     match args.first().map(String::as_str) {
         Some("ci") => ci::run(),
+        Some("validate") => validate::main(&args[1..]),
         Some(other) => anyhow::bail!("unknown task `{other}`\n\n{USAGE}"),
         None => {
             println!("{USAGE}");
@@ -22,4 +34,5 @@ fn main() -> anyhow::Result<()> {
 const USAGE: &str = "usage: cargo xtask <task>
 
 tasks:
-  ci        format check, clippy -D warnings, and the test suite (what .ci/run runs)";
+  ci        format check, clippy -D warnings, and the test suite (what .ci/run runs)
+  validate  the papers' experiments: [--quick | --full] [--only NAME…] [--out DIR]";

@@ -51,6 +51,14 @@ pub enum SimError {
         /// What happened.
         message: String,
     },
+    /// The run was stopped from outside (Ctrl-C) after `step` steps.
+    #[error("interrupted after step {step} (t = {time:.6e} s)")]
+    Interrupted {
+        /// Steps completed.
+        step: usize,
+        /// Simulated time reached.
+        time: f64,
+    },
     /// An error from a library crate while building the world.
     #[error("{context}: {message}")]
     Build {

@@ -39,8 +39,18 @@ enum Command {
     },
 }
 
-fn main() -> anyhow::Result<()> {
-    let cli = Cli::parse();
+fn main() -> std::process::ExitCode {
+    // Errors are for users: one line naming what and where, no backtrace.
+    match run(Cli::parse()) {
+        Ok(()) => std::process::ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("error: {e:#}");
+            std::process::ExitCode::FAILURE
+        }
+    }
+}
+
+fn run(cli: Cli) -> anyhow::Result<()> {
     match cli.command {
         Command::Run {
             scene,
@@ -50,10 +60,16 @@ fn main() -> anyhow::Result<()> {
             quiet,
         } => {
             let s = femp::scene::load(&scene)?;
+            // Ctrl-C stops after the current step; the files so far stay and the summary says so.
+            let interrupt = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
+            let flag = interrupt.clone();
+            ctrlc::set_handler(move || flag.store(true, std::sync::atomic::Ordering::Relaxed))
+                .context("installing the Ctrl-C handler")?;
             let opts = femp::run::RunOptions {
                 progress: !quiet,
                 max_steps,
                 no_frames,
+                interrupt: Some(interrupt),
             };
             let r = femp::run::run(s, &out, &opts)
                 .with_context(|| format!("running {}", scene.display()))?;

@@ -22,7 +22,7 @@ pub struct Summary {
     pub scene: String,
     /// 2 or 3.
     pub dimension: usize,
-    /// `completed` or `failed`.
+    /// `running` (while it runs), `completed`, `failed` or `interrupted`.
     pub status: String,
     /// Why it failed.
     pub error: Option<String>,

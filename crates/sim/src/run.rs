@@ -19,6 +19,9 @@ pub struct RunOptions {
     pub max_steps: Option<usize>,
     /// Do not write frames (metrics and summary only).
     pub no_frames: bool,
+    /// Set from elsewhere (e.g. a Ctrl-C handler) to stop the run after the current step; the
+    /// run then ends with status `interrupted` and [`SimError::Interrupted`].
+    pub interrupt: Option<std::sync::Arc<std::sync::atomic::AtomicBool>>,
 }
 
 /// Everything a finished run measured, for callers that use femp as a library.
@@ -78,6 +81,8 @@ pub fn run_with<const D: usize>(
         fem_vertices: world.fem.iter().map(|b| b.x.len()).sum(),
         ..Default::default()
     };
+    // A summary from the start: a run killed outright still says `running` and what it is.
+    out.summary(&summary)?;
     let mut all = Vec::with_capacity(total_steps + 1);
     let m0 = world.measure();
     out.metrics_row::<D>(&m0)?;
@@ -100,7 +105,19 @@ pub fn run_with<const D: usize>(
     let mut last_line = Instant::now();
     for _ in 0..total_steps {
         let t0 = Instant::now();
-        match world.step() {
+        let step = if opts
+            .interrupt
+            .as_ref()
+            .is_some_and(|f| f.load(std::sync::atomic::Ordering::Relaxed))
+        {
+            Err(SimError::Interrupted {
+                step: world.step,
+                time: world.time,
+            })
+        } else {
+            world.step()
+        };
+        match step {
             Ok(report) => {
                 let clock = Instant::now();
                 let mut m = world.measure();
@@ -161,7 +178,11 @@ pub fn run_with<const D: usize>(
                 if let Some(b) = &bar {
                     b.abandon();
                 }
-                summary.status = "failed".into();
+                summary.status = if matches!(e, SimError::Interrupted { .. }) {
+                    "interrupted".into()
+                } else {
+                    "failed".into()
+                };
                 summary.error = Some(e.to_string());
                 summary.wall_s = start.elapsed().as_secs_f64();
                 summary.frames = out.frames();

@@ -7,6 +7,7 @@ use femp_fem::{Boundary, ElasticBody, LinearElastic, Material, Mesh, NeoHookean,
 use femp_kernels::{Grid, Kernel, Stencils};
 use femp_solver::{Integrator, Newton};
 use nalgebra::{SMatrix, SVector};
+use rayon::prelude::*;
 
 use crate::build::{fem_mesh, inside_simplex, sample_shape, transform_fn};
 use crate::error::{SimError, invalid};
@@ -263,14 +264,14 @@ impl<const D: usize> World<D> {
         for (i, b) in spec.bodies.iter().enumerate() {
             let f = format!("bodies[{i}]");
             match b {
-                BodySpec::Mpm {
+                BodySpec::Mpm(crate::scene::spec::MpmBody {
                     name,
                     shape,
                     particles_per_cell,
                     material,
                     velocity,
                     angular_velocity,
-                } => {
+                }) => {
                     let m = spec.mpm.as_ref().expect("validated: mpm section present");
                     let state = mpm.get_or_insert_with(|| {
                         let grid = Grid::new(m.grid_spacing, SVector::zeros(), Kernel::Quadratic)
@@ -350,7 +351,7 @@ impl<const D: usize> World<D> {
                         range: (start, start + n),
                     });
                 }
-                BodySpec::Fem {
+                BodySpec::Fem(crate::scene::spec::FemBody {
                     name,
                     mesh,
                     transform,
@@ -358,7 +359,7 @@ impl<const D: usize> World<D> {
                     velocity,
                     angular_velocity,
                     prescribed,
-                } => {
+                }) => {
                     let mut m = fem_mesh::<D>(mesh, &scene.base_dir, &format!("{f}.mesh"))?;
                     if let Some(t) = transform {
                         let tf = transform_fn::<D>(t);
@@ -465,13 +466,7 @@ impl<const D: usize> World<D> {
         // Contact pairs.
         let mut pairs = Vec::new();
         if let Some(c) = &spec.contact {
-            let names: Vec<&str> = spec
-                .bodies
-                .iter()
-                .map(|b| match b {
-                    BodySpec::Mpm { name, .. } | BodySpec::Fem { name, .. } => name.as_str(),
-                })
-                .collect();
+            let names: Vec<&str> = spec.bodies.iter().map(BodySpec::name).collect();
             for i in 0..names.len() {
                 for j in i + 1..names.len() {
                     let (si, sj) = (slot[i], slot[j]);
@@ -578,15 +573,37 @@ impl<const D: usize> World<D> {
                     .map(|&v| self.fem[*body].x[v])
                     .collect(),
             };
-            if let Some((k, e)) = first_inside(&points, &target.mesh, &target.x) {
+            let mut inside = inside_elements(&points, &target.mesh, &target.x);
+            if !inside.is_empty() {
+                inside.sort_unstable();
+                inside.dedup_by_key(|(k, _)| *k);
+                // The worst offender: the point deepest inside (farthest from the boundary).
+                let (k, e, depth) = inside
+                    .par_iter()
+                    .map(|&(k, e)| {
+                        let d = target
+                            .facets
+                            .iter()
+                            .map(|f| point_facet_distance(&points[k], f, &target.x))
+                            .fold(f64::INFINITY, f64::min);
+                        (k, e, d)
+                    })
+                    .reduce(|| (0, 0, -1.0), |a, b| if b.2 > a.2 { b } else { a });
+                let (lo, hi) = target.mesh.bounding_box();
+                let where_ = if depth <= 1e-12 * (hi - lo).norm() {
+                    "lies on the boundary (distance 0)".to_string()
+                } else {
+                    format!("is {depth:.3e} m inside")
+                };
                 return Err(SimError::Overlap {
                     a: pair.names.0.clone(),
                     b: pair.names.1.clone(),
                     detail: format!(
-                        "point {k} of `{}` at {:?} lies inside element {e} of `{}`",
+                        "{} point(s) of `{}` lie inside or on `{}`; the deepest, point {k} at {:?}, {where_} (element {e})",
+                        inside.len(),
                         pair.names.0,
+                        pair.names.1,
                         points[k].as_slice(),
-                        pair.names.1
                     ),
                 });
             }
@@ -656,6 +673,22 @@ impl<const D: usize> World<D> {
             }
         }
         Ok(())
+    }
+}
+
+/// Distance from `p` to a boundary facet (an edge in 2D, a triangle in 3D).
+fn point_facet_distance<const D: usize>(
+    p: &SVector<f64, D>,
+    f: &[u32; 3],
+    x: &[SVector<f64, D>],
+) -> f64 {
+    use femp_contact::distance::{point_edge, point_triangle};
+    let v = |i: u32| x[i as usize];
+    if D == 2 {
+        point_edge::sq_dist(p, &v(f[0]), &v(f[1])).sqrt()
+    } else {
+        let t = |q: SVector<f64, D>| nalgebra::Vector3::from_fn(|a, _| q[a]);
+        point_triangle::sq_dist(&t(*p), &t(v(f[0])), &t(v(f[1])), &t(v(f[2]))).sqrt()
     }
 }
 

@@ -50,15 +50,52 @@ impl NeoHookean {
     }
 }
 
+/// `x − ln(1 + x)` to full relative precision (a series for small `|x|`, where the direct
+/// difference cancels).
+fn x_minus_ln_1p(x: f64) -> f64 {
+    if x.abs() < 1e-2 {
+        // Σ_{k≥2} (−1)^k x^k / k, truncated after k = 9 (relative error < 1e-17).
+        let mut sum = 0.0;
+        let mut p = x * x;
+        for k in 2..=9 {
+            let term = p / k as f64;
+            sum += if k % 2 == 0 { term } else { -term };
+            p *= x;
+        }
+        sum
+    } else {
+        x - x.ln_1p()
+    }
+}
+
 impl<const D: usize> Hyperelastic<D> for NeoHookean {
+    /// Evaluated in terms of `H = F − I` (exact in floating point for `F` near `I`):
+    /// `ψ = μ (tr H − ln J) + ½μ‖H‖² + ½λ (ln J)²` with `J − 1 = tr H + I₂(H) + det H` and
+    /// `ln J = ln_1p(J − 1)`. The textbook form `½μ(‖F‖² − D) − μ ln J + …` cancels terms of
+    /// size μ at first order, leaving a round-off of ~1e-16 μ per unit volume; for stiff
+    /// materials (E = 4e12 in BFEMP §6.4) that swamps the energy decrease a line search must
+    /// resolve near convergence. Here the round-off scales with the strain instead.
     fn energy_density(&self, f: &SMatrix<f64, D, D>) -> f64 {
-        let j = linalg::det(f);
-        if j <= 0.0 || !j.is_finite() {
+        let h = f - SMatrix::<f64, D, D>::identity();
+        let tr = h.trace();
+        // J − 1 − tr H: the second- and third-order invariants.
+        let higher = if D == 2 {
+            h[(0, 0)] * h[(1, 1)] - h[(0, 1)] * h[(1, 0)]
+        } else {
+            let minors = h[(0, 0)] * h[(1, 1)] - h[(0, 1)] * h[(1, 0)] + h[(0, 0)] * h[(2, 2)]
+                - h[(0, 2)] * h[(2, 0)]
+                + h[(1, 1)] * h[(2, 2)]
+                - h[(1, 2)] * h[(2, 1)];
+            minors + linalg::det(&h)
+        };
+        let jm1 = tr + higher;
+        if jm1 <= -1.0 || !jm1.is_finite() {
             return f64::INFINITY;
         }
-        let lnj = j.ln();
-        0.5 * self.mu * (f.norm_squared() - D as f64) - self.mu * lnj
-            + 0.5 * self.lambda * lnj * lnj
+        let lnj = jm1.ln_1p();
+        // tr H − ln J = −(J − 1 − tr H) + ((J − 1) − ln(1 + (J − 1))), both second order.
+        let tr_minus_lnj = x_minus_ln_1p(jm1) - higher;
+        self.mu * tr_minus_lnj + 0.5 * self.mu * h.norm_squared() + 0.5 * self.lambda * lnj * lnj
     }
 
     fn first_piola(&self, f: &SMatrix<f64, D, D>) -> SMatrix<f64, D, D> {

@@ -44,11 +44,21 @@ pub fn parse(
 ) -> Result<Scene, SimError> {
     let de = &mut serde_json::Deserializer::from_str(text);
     let spec: SceneSpec = serde_path_to_error::deserialize(de).map_err(|e| {
-        let field = e.path().to_string();
+        let mut field = e.path().to_string();
+        let mut message = e.into_inner().to_string();
+        // A body's own deserialiser reports the path inside the body as `\u{1}path\u{1}rest`.
+        if let Some(rest) = message.strip_prefix(spec::NESTED_PATH)
+            && let Some((inner, rest)) = rest.split_once(spec::NESTED_PATH)
+        {
+            if !inner.is_empty() && inner != "." {
+                field = format!("{field}.{inner}");
+            }
+            message = rest.to_string();
+        }
         SimError::SceneFormat {
             file: file.to_string(),
             field: if field == "." { "(root)".into() } else { field },
-            message: e.into_inner().to_string(),
+            message,
         }
     })?;
     validate(&spec)?;
@@ -239,9 +249,7 @@ pub fn validate(s: &SceneSpec) -> Result<(), SimError> {
     let mut n_fem = 0;
     for (i, b) in s.bodies.iter().enumerate() {
         let f = format!("bodies[{i}]");
-        let name = match b {
-            BodySpec::Mpm { name, .. } | BodySpec::Fem { name, .. } => name.as_str(),
-        };
+        let name = b.name();
         if name.is_empty() {
             return Err(invalid(format!("{f}.name"), "must not be empty"));
         }
@@ -253,14 +261,14 @@ pub fn validate(s: &SceneSpec) -> Result<(), SimError> {
         }
         names.push(name);
         match b {
-            BodySpec::Mpm {
+            BodySpec::Mpm(MpmBody {
                 shape,
                 particles_per_cell,
                 material: m,
                 velocity,
                 angular_velocity,
                 ..
-            } => {
+            }) => {
                 any_mpm = true;
                 material(&format!("{f}.material"), m)?;
                 if let Some(v) = velocity {
@@ -320,7 +328,7 @@ pub fn validate(s: &SceneSpec) -> Result<(), SimError> {
                     }
                 }
             }
-            BodySpec::Fem {
+            BodySpec::Fem(FemBody {
                 mesh,
                 transform: t,
                 material: m,
@@ -328,7 +336,7 @@ pub fn validate(s: &SceneSpec) -> Result<(), SimError> {
                 angular_velocity,
                 prescribed,
                 ..
-            } => {
+            }) => {
                 n_fem += 1;
                 material(&format!("{f}.material"), m)?;
                 if let Some(v) = velocity {

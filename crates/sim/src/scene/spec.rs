@@ -185,49 +185,112 @@ pub struct TransformSpec {
     pub translate: Option<Vec<f64>>,
 }
 
-/// A body.
-#[derive(Debug, Clone, Deserialize)]
-#[serde(tag = "kind", rename_all = "snake_case", deny_unknown_fields)]
+/// A body: `{"kind": "mpm", ...}` ([`MpmBody`]) or `{"kind": "fem", ...}` ([`FemBody`]).
+///
+/// Deserialised by hand (not with serde's internally tagged enums, which lose the path of an
+/// error inside the body): errors name the full path, e.g. `bodies[0].material.Young`.
+#[derive(Debug, Clone)]
 pub enum BodySpec {
     /// Material points on the background grid.
-    Mpm {
-        /// Unique name.
-        name: String,
-        /// Region filled with particles.
-        shape: ShapeSpec,
-        /// Particles per grid cell (a perfect square in 2D, cube in 3D). Default 4 / 8.
-        #[serde(default)]
-        particles_per_cell: Option<usize>,
-        /// Material.
-        material: MaterialSpec,
-        /// Initial linear velocity.
-        #[serde(default)]
-        velocity: Option<Vec<f64>>,
-        /// Initial angular velocity about the body's centre of mass.
-        #[serde(default)]
-        angular_velocity: Option<AngularSpec>,
-    },
+    Mpm(MpmBody),
     /// A finite-element mesh.
-    Fem {
-        /// Unique name.
-        name: String,
-        /// The mesh.
-        mesh: MeshSpec,
-        /// Placement of the mesh.
-        #[serde(default)]
-        transform: Option<TransformSpec>,
-        /// Material.
-        material: MaterialSpec,
-        /// Initial linear velocity.
-        #[serde(default)]
-        velocity: Option<Vec<f64>>,
-        /// Initial angular velocity about the body's centre of mass.
-        #[serde(default)]
-        angular_velocity: Option<AngularSpec>,
-        /// Vertex sets with prescribed motion.
-        #[serde(default)]
-        prescribed: Vec<PrescribedSpec>,
-    },
+    Fem(FemBody),
+}
+
+impl BodySpec {
+    /// The body's name.
+    pub fn name(&self) -> &str {
+        match self {
+            BodySpec::Mpm(b) => &b.name,
+            BodySpec::Fem(b) => &b.name,
+        }
+    }
+}
+
+/// Prefix of a nested error message that carries the path inside a body (merged into the field
+/// path by [`super::parse`]).
+pub(crate) const NESTED_PATH: &str = "\u{1}";
+
+impl<'de> Deserialize<'de> for BodySpec {
+    fn deserialize<De: serde::Deserializer<'de>>(de: De) -> Result<Self, De::Error> {
+        use serde::de::Error;
+        let mut v = serde_json::Value::deserialize(de)?;
+        let obj = v
+            .as_object_mut()
+            .ok_or_else(|| De::Error::custom("a body must be an object with a `kind`"))?;
+        let kind = match obj.remove("kind") {
+            None => return Err(De::Error::missing_field("kind")),
+            Some(serde_json::Value::String(k)) => k,
+            Some(other) => {
+                return Err(De::Error::custom(format!(
+                    "{NESTED_PATH}kind{NESTED_PATH}expected \"mpm\" or \"fem\", found {other}"
+                )));
+            }
+        };
+        let nested = |e: serde_path_to_error::Error<serde_json::Error>| {
+            let path = e.path().to_string();
+            De::Error::custom(format!(
+                "{NESTED_PATH}{path}{NESTED_PATH}{}",
+                e.into_inner()
+            ))
+        };
+        match kind.as_str() {
+            "mpm" => serde_path_to_error::deserialize(v)
+                .map(BodySpec::Mpm)
+                .map_err(nested),
+            "fem" => serde_path_to_error::deserialize(v)
+                .map(BodySpec::Fem)
+                .map_err(nested),
+            other => Err(De::Error::custom(format!(
+                "{NESTED_PATH}kind{NESTED_PATH}unknown variant `{other}`, expected `mpm` or `fem`"
+            ))),
+        }
+    }
+}
+
+/// An MPM body: material points filling a region, on the scene's background grid.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct MpmBody {
+    /// Unique name.
+    pub name: String,
+    /// Region filled with particles.
+    pub shape: ShapeSpec,
+    /// Particles per grid cell (a perfect square in 2D, cube in 3D). Default 4 / 8.
+    #[serde(default)]
+    pub particles_per_cell: Option<usize>,
+    /// Material.
+    pub material: MaterialSpec,
+    /// Initial linear velocity.
+    #[serde(default)]
+    pub velocity: Option<Vec<f64>>,
+    /// Initial angular velocity about the body's centre of mass.
+    #[serde(default)]
+    pub angular_velocity: Option<AngularSpec>,
+}
+
+/// A FEM body: a mesh, optionally placed, with vertex sets of prescribed motion.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct FemBody {
+    /// Unique name.
+    pub name: String,
+    /// The mesh.
+    pub mesh: MeshSpec,
+    /// Placement of the mesh.
+    #[serde(default)]
+    pub transform: Option<TransformSpec>,
+    /// Material.
+    pub material: MaterialSpec,
+    /// Initial linear velocity.
+    #[serde(default)]
+    pub velocity: Option<Vec<f64>>,
+    /// Initial angular velocity about the body's centre of mass.
+    #[serde(default)]
+    pub angular_velocity: Option<AngularSpec>,
+    /// Vertex sets with prescribed motion.
+    #[serde(default)]
+    pub prescribed: Vec<PrescribedSpec>,
 }
 
 /// An MPM region.

@@ -1,0 +1,272 @@
+//! Every class of bad input is rejected before a run with a message that names what and where:
+//! unknown fields, wrong types, non-physical values, missing or malformed mesh files, degenerate
+//! meshes, bodies that start overlapping and particles at distance 0 of a FEM boundary.
+
+use std::path::Path;
+
+use femp::scene;
+use femp::{SimError, World};
+use serde_json::{Value, json};
+
+/// A valid 2D scene: an MPM block above a fixed FEM plate.
+fn base() -> Value {
+    json!({
+        "dimension": 2, "gravity": [0, -9.81],
+        "time": { "dt": 0.01, "duration": 0.1 },
+        "mpm": { "grid_spacing": 0.05 },
+        "bodies": [
+            { "kind": "mpm", "name": "block",
+              "shape": { "box": { "min": [-0.2, 0.05], "max": [0.2, 0.25] } },
+              "material": { "E": 1e5, "nu": 0.3, "rho": 1000 } },
+            { "kind": "fem", "name": "plate",
+              "mesh": { "rectangle": { "min": [-1, -0.1], "max": [1, 0], "cells": [20, 1] } },
+              "material": { "E": 1e7, "nu": 0.3, "rho": 1000 },
+              "prescribed": [ { "vertices": "all", "motion": [] } ] }
+        ],
+        "contact": { "dhat": 0.005, "kappa": 1e5 }
+    })
+}
+
+/// Parse and build (2D) a scene; the error message, or `None` if it is accepted.
+fn error_of(v: &Value, dir: &Path) -> Option<String> {
+    let text = serde_json::to_string_pretty(v).unwrap();
+    let s = match scene::parse(&text, "bad.json", dir.to_path_buf(), "bad") {
+        Ok(s) => s,
+        Err(e) => return Some(e.to_string()),
+    };
+    World::<2>::build(s).err().map(|e| e.to_string())
+}
+
+fn expect_error(v: &Value, needles: &[&str]) -> String {
+    let msg = error_of(v, Path::new(".")).expect("the scene must be rejected");
+    for n in needles {
+        assert!(msg.contains(n), "message `{msg}` lacks `{n}`");
+    }
+    msg
+}
+
+#[test]
+fn the_base_scene_is_valid() {
+    assert_eq!(error_of(&base(), Path::new(".")), None);
+}
+
+#[test]
+fn unknown_fields_are_named_with_their_path() {
+    let mut v = base();
+    v["bodies"][0]["colour"] = json!("red");
+    expect_error(
+        &v,
+        &["bad.json", "bodies[0].colour", "unknown field `colour`"],
+    );
+
+    let mut v = base();
+    v["bodies"][1]["material"]["Young"] = json!(1e7);
+    expect_error(&v, &["bodies[1].material.Young", "unknown field", "`E`"]);
+
+    let mut v = base();
+    v["contact"]["mu"] = json!(0.3);
+    expect_error(&v, &["contact.mu", "unknown field", "`friction`"]);
+
+    let mut v = base();
+    v["timestep"] = json!(0.1);
+    expect_error(&v, &["timestep", "unknown field"]);
+
+    let mut v = base();
+    v["bodies"][0]["kind"] = json!("spring");
+    expect_error(&v, &["bodies[0].kind", "spring", "`mpm` or `fem`"]);
+}
+
+#[test]
+fn wrong_types_are_named_with_their_path_and_position() {
+    let mut v = base();
+    v["time"]["dt"] = json!("0.01");
+    expect_error(&v, &["time.dt", "invalid type: string", "line"]);
+
+    let mut v = base();
+    v["bodies"][1]["mesh"]["rectangle"]["cells"] = json!([20.5, 1]);
+    expect_error(&v, &["bodies[1].mesh.rectangle.cells[0]", "invalid type"]);
+
+    let mut v = base();
+    v["bodies"][0]["velocity"] = json!([1.0, 2.0, 3.0]);
+    expect_error(&v, &["bodies[0].velocity", "3 components", "2D"]);
+
+    let msg = scene::parse("{ \"dimension\": 2, ", "x.json", ".".into(), "x")
+        .unwrap_err()
+        .to_string();
+    assert!(msg.contains("x.json") && msg.contains("EOF"), "{msg}");
+}
+
+#[test]
+fn non_physical_values_are_named() {
+    let mut v = base();
+    v["bodies"][1]["material"]["nu"] = json!(0.5);
+    expect_error(&v, &["bodies[1].material.nu: 0.5", "must be < 0.5"]);
+
+    let mut v = base();
+    v["bodies"][0]["material"]["E"] = json!(0.0);
+    expect_error(&v, &["bodies[0].material.E", "must be positive"]);
+
+    let mut v = base();
+    v["bodies"][0]["material"]["rho"] = json!(-3.0);
+    expect_error(&v, &["bodies[0].material.rho: -3 must be positive"]);
+
+    let mut v = base();
+    v["time"]["dt"] = json!(-1e-3);
+    expect_error(&v, &["time.dt: -0.001 must be positive"]);
+
+    let mut v = base();
+    v["contact"]["kappa"] = json!(0.0);
+    expect_error(&v, &["contact.kappa", "must be positive"]);
+
+    let mut v = base();
+    v["contact"]["friction"] = json!(-0.1);
+    expect_error(&v, &["contact.friction", "non-negative"]);
+
+    let mut v = base();
+    v["mpm"]["grid_spacing"] = json!(0.0);
+    expect_error(&v, &["mpm.grid_spacing", "must be positive"]);
+
+    let mut v = base();
+    v["bodies"][0]["particles_per_cell"] = json!(5);
+    expect_error(&v, &["bodies[0].particles_per_cell", "perfect square"]);
+
+    let mut v = base();
+    v["dimension"] = json!(4);
+    expect_error(&v, &["dimension", "must be 2 or 3"]);
+}
+
+#[test]
+fn inconsistent_scenes_are_named() {
+    let mut v = base();
+    v["bodies"][1]["name"] = json!("block");
+    expect_error(&v, &["bodies[1].name", "`block` is used by another body"]);
+
+    let mut v = base();
+    v.as_object_mut().unwrap().remove("contact");
+    expect_error(&v, &["contact", "no `contact` section"]);
+
+    let mut v = base();
+    v.as_object_mut().unwrap().remove("mpm");
+    expect_error(&v, &["mpm", "no `mpm` section"]);
+
+    let mut v = base();
+    v["contact"]["pairs"] = json!([{ "bodies": ["block", "plank"] }]);
+    expect_error(
+        &v,
+        &["contact.pairs[0].bodies[1]", "no body is called `plank`"],
+    );
+
+    let mut v = base();
+    v["bodies"][1]["prescribed"][0]["motion"] =
+        json!([{ "until": 1.0, "velocity": [1, 0] }, { "until": 0.5 }]);
+    expect_error(
+        &v,
+        &[
+            "bodies[1].prescribed[0].motion[1].until",
+            "after the previous",
+        ],
+    );
+}
+
+#[test]
+fn missing_and_malformed_mesh_files_are_named() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut v = base();
+    v["bodies"][1]["mesh"] = json!({ "file": { "path": "nope.msh" } });
+    let msg = error_of(&v, dir.path()).unwrap();
+    assert!(
+        msg.contains("bodies[1].mesh") && msg.contains("nope.msh"),
+        "{msg}"
+    );
+
+    // A malformed file: the error gives the file and the line.
+    std::fs::write(
+        dir.path().join("broken.msh"),
+        "$MeshFormat\n2.2 0 8\n$EndMeshFormat\n$Nodes\n3\n1 0 0 0\n2 1 0\n",
+    )
+    .unwrap();
+    v["bodies"][1]["mesh"] = json!({ "file": { "path": "broken.msh" } });
+    let msg = error_of(&v, dir.path()).unwrap();
+    assert!(
+        msg.contains("bodies[1].mesh") && msg.contains("broken.msh:"),
+        "{msg}"
+    );
+}
+
+#[test]
+fn a_degenerate_mesh_names_the_element() {
+    let dir = tempfile::tempdir().unwrap();
+    // Two triangles; the second (element 2 of the file, on line 15) has collinear vertices.
+    std::fs::write(
+        dir.path().join("degenerate.msh"),
+        "$MeshFormat\n2.2 0 8\n$EndMeshFormat\n$Nodes\n5\n1 -1 -0.1 0\n2 1 -0.1 0\n3 1 0 0\n\
+         4 0 -0.1 0\n5 -1 0 0\n$EndNodes\n$Elements\n2\n1 2 2 0 1 1 3 5\n2 2 2 0 1 1 4 2\n\
+         $EndElements\n",
+    )
+    .unwrap();
+    let mut v = base();
+    v["bodies"][1]["mesh"] = json!({ "file": { "path": "degenerate.msh" } });
+    let msg = error_of(&v, dir.path()).unwrap();
+    assert!(
+        msg.contains("bodies[1].mesh")
+            && msg.contains("degenerate.msh:15")
+            && msg.contains("element 2 is degenerate"),
+        "{msg}"
+    );
+}
+
+#[test]
+fn bodies_that_start_overlapping_are_rejected_with_the_worst_offender() {
+    // The block reaches 5 cm into the plate: the deepest particle is named with its depth.
+    let mut v = base();
+    v["bodies"][0]["shape"]["box"]["min"] = json!([-0.2, -0.05]);
+    let msg = expect_error(
+        &v,
+        &["`block` and `plate` start overlapping", "the deepest"],
+    );
+    // Particles sit at (i + ½)·h/2 = 0.0125 + 0.025 i: the deepest inside a plate of
+    // thickness 0.1 with top at 0 is at y = −0.0375, 0.0375 m deep (the plate's middle).
+    assert!(msg.contains("3.750e-2 m inside"), "{msg}");
+    assert!(msg.contains("32 point(s)"), "{msg}");
+
+    // Two FEM bodies overlapping.
+    let mut v = base();
+    v["bodies"][0] = json!({ "kind": "fem", "name": "lid",
+        "mesh": { "rectangle": { "min": [-0.5, -0.05], "max": [0.5, 0.2], "cells": [4, 2] } },
+        "material": { "E": 1e7, "nu": 0.3, "rho": 1000 } });
+    expect_error(&v, &["`lid` and `plate` start overlapping"]);
+}
+
+#[test]
+fn a_particle_at_distance_zero_from_a_fem_boundary_is_rejected() {
+    // The plate's top at y = 0.0625 holds the block's lowest particle row exactly.
+    let mut v = base();
+    v["bodies"][1]["mesh"]["rectangle"]["max"] = json!([1.0, 0.0625]);
+    expect_error(
+        &v,
+        &[
+            "`block` and `plate` start overlapping",
+            "lies on the boundary (distance 0)",
+        ],
+    );
+    // A hair above it is accepted (the barrier is finite at any positive distance).
+    v["bodies"][1]["mesh"]["rectangle"]["max"] = json!([1.0, 0.0624]);
+    assert_eq!(error_of(&v, Path::new(".")), None);
+}
+
+#[test]
+fn errors_are_values_not_panics_for_every_variant() {
+    // A shape that holds no particle at this resolution.
+    let mut v = base();
+    v["bodies"][0]["shape"] = json!({ "disk": { "center": [0, 0.5], "radius": 1e-4 } });
+    let msg = expect_error(&v, &["bodies[0].shape", "no particle"]);
+    assert!(!msg.is_empty());
+    // The error type is matchable by callers.
+    let mut v = base();
+    v["bodies"][0]["shape"]["box"]["min"] = json!([-0.2, -0.05]);
+    let s = scene::parse(&v.to_string(), "x.json", ".".into(), "x").unwrap();
+    assert!(matches!(
+        World::<2>::build(s),
+        Err(SimError::Overlap { ref a, ref b, .. }) if a == "block" && b == "plate"
+    ));
+}

@@ -1,0 +1,174 @@
+//! The `femp` program: `check` accepts good scenes and names what is wrong with bad ones,
+//! `run` writes frames, metrics and a summary, and a run that fails mid-way keeps everything up
+//! to its last step, says why in `summary.json` and on stderr, and exits non-zero.
+
+use std::path::Path;
+use std::process::{Command, Output};
+
+use serde_json::{Value, json};
+
+fn femp(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_femp"))
+        .args(args)
+        .output()
+        .expect("femp runs")
+}
+
+fn scene(dir: &Path, name: &str, v: &Value) -> String {
+    let p = dir.join(name);
+    std::fs::write(&p, serde_json::to_string_pretty(v).unwrap()).unwrap();
+    p.display().to_string()
+}
+
+/// An MPM block moving down onto a fixed FEM plate, without gravity.
+fn falling_block(max_newton: usize) -> Value {
+    json!({
+        "dimension": 2,
+        "time": { "dt": 0.01, "duration": 0.2, "frame_interval": 0.01 },
+        "solver": { "tolerance": 1e-9, "max_newton_iterations": max_newton },
+        "mpm": { "grid_spacing": 0.05 },
+        "bodies": [
+            { "kind": "mpm", "name": "block",
+              "shape": { "box": { "min": [-0.2, 0.05], "max": [0.2, 0.25] } },
+              "material": { "E": 1e5, "nu": 0.3, "rho": 1000 }, "velocity": [0, -1] },
+            { "kind": "fem", "name": "plate",
+              "mesh": { "rectangle": { "min": [-1, -0.1], "max": [1, 0], "cells": [20, 1] } },
+              "material": { "E": 1e7, "nu": 0.3, "rho": 1000 },
+              "prescribed": [ { "vertices": "all", "motion": [] } ] }
+        ],
+        "contact": { "dhat": 0.005, "kappa": 1e5 }
+    })
+}
+
+#[test]
+fn check_accepts_a_valid_scene_and_reports_its_size() {
+    let dir = tempfile::tempdir().unwrap();
+    let p = scene(dir.path(), "ok.json", &falling_block(50));
+    let out = femp(&["check", &p]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let text = String::from_utf8_lossy(&out.stdout);
+    // 0.4 × 0.2 m at h = 0.05 with 4 particles per cell: 16 × 8 particles; the plate 21 × 2.
+    assert!(
+        text.contains("valid 2D scene, 128 particles, 42 FEM vertices"),
+        "{text}"
+    );
+}
+
+#[test]
+fn check_names_the_field_of_a_bad_scene_without_a_backtrace() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut v = falling_block(50);
+    v["bodies"][1]["material"]["nu"] = json!(0.5);
+    let p = scene(dir.path(), "bad.json", &v);
+    let out = Command::new(env!("CARGO_BIN_EXE_femp"))
+        .args(["check", &p])
+        .env("RUST_BACKTRACE", "1")
+        .output()
+        .unwrap();
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains("error: bodies[1].material.nu: 0.5") && err.contains("must be < 0.5"),
+        "{err}"
+    );
+    assert!(!err.contains("backtrace"), "{err}");
+    assert_eq!(err.lines().count(), 1, "one line: {err}");
+}
+
+#[test]
+fn every_subcommand_has_help() {
+    for args in [&["--help"][..], &["run", "--help"], &["check", "--help"]] {
+        let out = femp(args);
+        assert!(out.status.success());
+        let text = String::from_utf8_lossy(&out.stdout);
+        assert!(text.contains("Usage"), "{args:?}: {text}");
+    }
+}
+
+#[test]
+fn run_writes_frames_metrics_and_summary() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut v = falling_block(50);
+    v["time"]["duration"] = json!(0.05);
+    let p = scene(dir.path(), "ok.json", &v);
+    let out_dir = dir.path().join("out");
+    let out = femp(&["run", &p, "--out", out_dir.to_str().unwrap(), "-q"]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let summary: Value =
+        serde_json::from_str(&std::fs::read_to_string(out_dir.join("summary.json")).unwrap())
+            .unwrap();
+    assert_eq!(summary["status"], "completed");
+    assert_eq!(summary["steps"], 5);
+    assert_eq!(summary["max_penetrations"], 0);
+    let metrics = std::fs::read_to_string(out_dir.join("metrics.csv")).unwrap();
+    assert_eq!(
+        metrics.lines().count(),
+        1 + 6,
+        "header, initial state, 5 steps"
+    );
+    let header = metrics.lines().next().unwrap();
+    for col in [
+        "step",
+        "t",
+        "dt",
+        "kinetic_energy",
+        "elastic_energy",
+        "barrier_energy",
+        "momentum_x",
+        "momentum_y",
+        "angular_momentum",
+        "min_distance",
+        "penetrations",
+        "newton_iterations",
+        "friction_iterations",
+        "wall_s",
+    ] {
+        assert!(header.split(',').any(|c| c == col), "missing column {col}");
+    }
+    // Six particle frames (initial + 5) in the series, and the plate's frames.
+    let pvd = std::fs::read_to_string(out_dir.join("particles.pvd")).unwrap();
+    assert_eq!(pvd.matches("<DataSet").count(), 6);
+    for k in 0..6 {
+        let f = out_dir.join(format!("frames/particles_{k:06}.vtu"));
+        assert!(f.exists(), "{}", f.display());
+    }
+    assert!(out_dir.join("plate.pvd").exists());
+}
+
+#[test]
+fn a_run_that_fails_mid_way_keeps_its_files_and_says_why() {
+    // One Newton iteration per step suffices in free flight (the predictor is exact) but not
+    // once the block reaches the barrier: the run fails at the first contact step.
+    let dir = tempfile::tempdir().unwrap();
+    let p = scene(dir.path(), "fail.json", &falling_block(1));
+    let out_dir = dir.path().join("out");
+    let out = femp(&["run", &p, "--out", out_dir.to_str().unwrap(), "-q"]);
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains("failed") && err.contains("Newton did not converge"),
+        "{err}"
+    );
+    let summary: Value =
+        serde_json::from_str(&std::fs::read_to_string(out_dir.join("summary.json")).unwrap())
+            .unwrap();
+    assert_eq!(summary["status"], "failed");
+    let why = summary["error"].as_str().unwrap();
+    assert!(why.contains("Newton did not converge"), "{why}");
+    let steps = summary["steps"].as_u64().unwrap() as usize;
+    assert!((1..20).contains(&steps), "failed after {steps} steps");
+    // Every completed step is in metrics.csv and has a frame.
+    let metrics = std::fs::read_to_string(out_dir.join("metrics.csv")).unwrap();
+    assert_eq!(metrics.lines().count(), 1 + 1 + steps);
+    let pvd = std::fs::read_to_string(out_dir.join("particles.pvd")).unwrap();
+    assert_eq!(pvd.matches("<DataSet").count(), 1 + steps);
+    assert_eq!(summary["frames"].as_u64().unwrap() as usize, 1 + steps);
+}

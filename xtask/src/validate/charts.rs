@@ -1,0 +1,172 @@
+//! Line charts as PNG and SVG through plotters, with the DejaVu Sans font embedded (no system
+//! font libraries needed).
+
+use std::path::{Path, PathBuf};
+use std::sync::Once;
+
+use anyhow::{Context, Result};
+use plotters::coord::Shift;
+use plotters::prelude::*;
+
+/// One curve of a chart.
+pub struct Series {
+    /// Legend label.
+    pub label: String,
+    /// Points `(x, y)`.
+    pub points: Vec<(f64, f64)>,
+    /// Colour index into the palette.
+    pub colour: usize,
+    /// Dashed (reference / analytic curves).
+    pub dashed: bool,
+}
+
+impl Series {
+    /// A solid curve.
+    pub fn line(label: impl Into<String>, points: Vec<(f64, f64)>, colour: usize) -> Self {
+        Self {
+            label: label.into(),
+            points,
+            colour,
+            dashed: false,
+        }
+    }
+
+    /// A dashed reference curve.
+    pub fn reference(label: impl Into<String>, points: Vec<(f64, f64)>, colour: usize) -> Self {
+        Self {
+            label: label.into(),
+            points,
+            colour,
+            dashed: true,
+        }
+    }
+}
+
+/// A chart: title, axis labels, curves.
+pub struct Chart {
+    /// File stem (without extension).
+    pub stem: String,
+    /// Title.
+    pub title: String,
+    /// x-axis label.
+    pub x_label: String,
+    /// y-axis label.
+    pub y_label: String,
+    /// Curves.
+    pub series: Vec<Series>,
+}
+
+fn register_font() {
+    static ONCE: Once = Once::new();
+    ONCE.call_once(|| {
+        // The embedded DejaVu Sans stands in for the default family name plotters asks for.
+        for family in ["sans-serif", "serif"] {
+            let _ =
+                plotters::style::register_font(family, FontStyle::Normal, dejavu::sans::regular());
+            let _ = plotters::style::register_font(family, FontStyle::Bold, dejavu::sans::bold());
+        }
+    });
+}
+
+const PALETTE: [RGBColor; 6] = [
+    RGBColor(31, 119, 180),
+    RGBColor(214, 39, 40),
+    RGBColor(44, 160, 44),
+    RGBColor(255, 127, 14),
+    RGBColor(148, 103, 189),
+    RGBColor(90, 90, 90),
+];
+
+fn bounds(series: &[Series]) -> (f64, f64, f64, f64) {
+    let pts = series.iter().flat_map(|s| s.points.iter());
+    let (mut x0, mut x1, mut y0, mut y1) = (
+        f64::INFINITY,
+        f64::NEG_INFINITY,
+        f64::INFINITY,
+        f64::NEG_INFINITY,
+    );
+    for &(x, y) in pts.filter(|p| p.0.is_finite() && p.1.is_finite()) {
+        x0 = x0.min(x);
+        x1 = x1.max(x);
+        y0 = y0.min(y);
+        y1 = y1.max(y);
+    }
+    if !x0.is_finite() {
+        return (0.0, 1.0, 0.0, 1.0);
+    }
+    if x1 <= x0 {
+        x1 = x0 + 1.0;
+    }
+    let pad = 0.05 * (y1 - y0).max(1e-300 + 1e-12 * y1.abs());
+    if y1 - y0 <= 0.0 {
+        return (x0, x1, y0 - 1.0, y1 + 1.0);
+    }
+    (x0, x1, y0 - pad, y1 + pad)
+}
+
+fn draw<DB: DrawingBackend>(root: DrawingArea<DB, Shift>, chart: &Chart) -> Result<()>
+where
+    DB::ErrorType: 'static,
+{
+    root.fill(&WHITE).map_err(|e| anyhow::anyhow!("{e:?}"))?;
+    let (x0, x1, y0, y1) = bounds(&chart.series);
+    let mut c = ChartBuilder::on(&root)
+        .caption(&chart.title, ("sans-serif", 22))
+        .margin(12)
+        .x_label_area_size(45)
+        .y_label_area_size(80)
+        .build_cartesian_2d(x0..x1, y0..y1)
+        .map_err(|e| anyhow::anyhow!("{e:?}"))?;
+    c.configure_mesh()
+        .x_desc(&chart.x_label)
+        .y_desc(&chart.y_label)
+        .label_style(("sans-serif", 14))
+        .y_label_formatter(&|v| format!("{v:.3e}"))
+        .draw()
+        .map_err(|e| anyhow::anyhow!("{e:?}"))?;
+    for s in &chart.series {
+        let colour = PALETTE[s.colour % PALETTE.len()];
+        let style = colour.stroke_width(2);
+        let pts: Vec<(f64, f64)> = s
+            .points
+            .iter()
+            .copied()
+            .filter(|p| p.0.is_finite() && p.1.is_finite())
+            .collect();
+        let anno = if s.dashed {
+            c.draw_series(DashedLineSeries::new(pts, 8, 5, style))
+                .map_err(|e| anyhow::anyhow!("{e:?}"))?
+        } else {
+            c.draw_series(LineSeries::new(pts, style))
+                .map_err(|e| anyhow::anyhow!("{e:?}"))?
+        };
+        anno.label(&s.label).legend(move |(x, y)| {
+            PathElement::new(vec![(x, y), (x + 20, y)], colour.stroke_width(2))
+        });
+    }
+    c.configure_series_labels()
+        .background_style(WHITE.mix(0.85))
+        .border_style(BLACK)
+        .label_font(("sans-serif", 14))
+        .position(SeriesLabelPosition::UpperRight)
+        .draw()
+        .map_err(|e| anyhow::anyhow!("{e:?}"))?;
+    root.present().map_err(|e| anyhow::anyhow!("{e:?}"))?;
+    Ok(())
+}
+
+/// Write `dir/<stem>.png` and `dir/<stem>.svg`; returns the PNG path.
+pub fn write(dir: &Path, chart: &Chart) -> Result<PathBuf> {
+    register_font();
+    std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+    let png = dir.join(format!("{}.png", chart.stem));
+    let svg = dir.join(format!("{}.svg", chart.stem));
+    draw(
+        BitMapBackend::new(&png, (800, 500)).into_drawing_area(),
+        chart,
+    )
+    .with_context(|| format!("drawing {}", png.display()))?;
+    draw(SVGBackend::new(&svg, (800, 500)).into_drawing_area(), chart)
+        .with_context(|| format!("drawing {}", svg.display()))?;
+    Ok(png)
+}

@@ -1,0 +1,391 @@
+//! `cargo xtask validate`: the papers' experiments run through `femp` as a library, each figure
+//! compared with the analytic answer or the paper's number, one table, charts and a report.
+//!
+//! ```text
+//! cargo xtask validate [--quick | --full] [--only NAME…] [--out DIR]
+//! ```
+//!
+//! The quick tier (default) uses coarser resolutions that keep each check meaningful; the full
+//! tier uses the papers' parameters and rewrites `docs/validation/`. Every failure is collected;
+//! the exit code is non-zero if any check fails.
+
+mod charts;
+mod report;
+mod rings;
+mod slope;
+
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use anyhow::{Result, bail};
+use femp::metrics::Metrics;
+use femp::run::{RunOptions, RunResult, run_with};
+
+/// Resolution tier.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Tier {
+    /// Coarse, minutes (CI).
+    Quick,
+    /// The papers' parameters.
+    Full,
+}
+
+impl Tier {
+    fn name(self) -> &'static str {
+        match self {
+            Tier::Quick => "quick",
+            Tier::Full => "full",
+        }
+    }
+}
+
+/// Outcome of one check.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Status {
+    /// Within tolerance.
+    Pass,
+    /// Outside tolerance.
+    Fail,
+    /// A figure reported against the paper without a pass/fail criterion (say why in `note`).
+    Info,
+}
+
+impl Status {
+    fn label(self) -> &'static str {
+        match self {
+            Status::Pass => "PASS",
+            Status::Fail => "FAIL",
+            Status::Info => "INFO",
+        }
+    }
+}
+
+/// One row of the table.
+#[derive(Clone, Debug)]
+pub struct Check {
+    /// What is measured.
+    pub figure: String,
+    /// Measured value, formatted.
+    pub measured: String,
+    /// Expected value, formatted.
+    pub expected: String,
+    /// Tolerance, formatted.
+    pub tolerance: String,
+    /// Outcome.
+    pub status: Status,
+}
+
+impl Check {
+    /// `|measured − expected| ≤ tol` (absolute).
+    pub fn abs(figure: &str, measured: f64, expected: f64, tol: f64, unit: &str) -> Self {
+        let ok = (measured - expected).abs() <= tol;
+        Self {
+            figure: figure.into(),
+            measured: format!("{measured:.6e}{unit}"),
+            expected: format!("{expected:.6e}{unit}"),
+            tolerance: format!("± {tol:.1e}{unit}"),
+            status: if ok { Status::Pass } else { Status::Fail },
+        }
+    }
+
+    /// `|measured − expected| ≤ rel · |expected|`.
+    pub fn rel(figure: &str, measured: f64, expected: f64, rel: f64, unit: &str) -> Self {
+        let ok = (measured - expected).abs() <= rel * expected.abs();
+        Self {
+            figure: figure.into(),
+            measured: format!("{measured:.6e}{unit}"),
+            expected: format!("{expected:.6e}{unit}"),
+            tolerance: format!("± {:.2e} rel", rel),
+            status: if ok { Status::Pass } else { Status::Fail },
+        }
+    }
+
+    /// `measured ≤ bound`.
+    pub fn at_most(figure: &str, measured: f64, bound: f64, unit: &str) -> Self {
+        Self {
+            figure: figure.into(),
+            measured: format!("{measured:.3e}{unit}"),
+            expected: format!("≤ {bound:.3e}{unit}"),
+            tolerance: "—".into(),
+            status: if measured <= bound {
+                Status::Pass
+            } else {
+                Status::Fail
+            },
+        }
+    }
+
+    /// A count that must be exactly `expected`.
+    pub fn count(figure: &str, measured: usize, expected: usize) -> Self {
+        Self {
+            figure: figure.into(),
+            measured: measured.to_string(),
+            expected: expected.to_string(),
+            tolerance: "exact".into(),
+            status: if measured == expected {
+                Status::Pass
+            } else {
+                Status::Fail
+            },
+        }
+    }
+
+    /// A reported figure.
+    pub fn info(figure: &str, measured: String, expected: String) -> Self {
+        Self {
+            figure: figure.into(),
+            measured,
+            expected,
+            tolerance: "—".into(),
+            status: Status::Info,
+        }
+    }
+}
+
+/// What one experiment produced.
+#[derive(Debug, Default)]
+pub struct Outcome {
+    /// Rows of the table.
+    pub checks: Vec<Check>,
+    /// Charts (PNG paths, relative to the output directory).
+    pub charts: Vec<(String, PathBuf)>,
+    /// Plain-language notes for the report (where a result differs from the paper, and by how
+    /// much; what the scene is).
+    pub notes: Vec<String>,
+}
+
+/// An experiment of the suite.
+struct Experiment {
+    name: &'static str,
+    section: &'static str,
+    title: &'static str,
+    run: Option<fn(&Ctx) -> Result<Outcome>>,
+}
+
+/// Everything an experiment needs.
+pub struct Ctx {
+    /// Tier.
+    pub tier: Tier,
+    /// The experiment's own output directory.
+    pub dir: PathBuf,
+    /// Charts directory (shared).
+    pub charts: PathBuf,
+    /// Workspace root (for fixtures).
+    pub root: PathBuf,
+    progress: indicatif::MultiProgress,
+}
+
+impl Ctx {
+    /// Run a scene (JSON text) through femp with a progress bar; `label` names the run.
+    pub fn run_scene(&self, label: &str, json: &str) -> Result<RunResult> {
+        let scene = femp::scene::parse(json, label, self.root.join("fixtures/scenes"), label)?;
+        let steps = (scene.spec.time.duration / scene.spec.time.dt).ceil() as u64;
+        let bar = self.progress.add(indicatif::ProgressBar::new(steps));
+        bar.set_style(
+            indicatif::ProgressStyle::with_template(
+                "  {prefix:28} {bar:30} {pos}/{len} steps [{elapsed_precise} < {eta_precise}]",
+            )
+            .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
+        );
+        bar.set_prefix(label.to_string());
+        let out = self.dir.join(label);
+        let opts = RunOptions {
+            no_frames: true,
+            ..Default::default()
+        };
+        let r = match scene.spec.dimension {
+            2 => run_with::<2>(scene, &out, &opts, |_, _: &Metrics| bar.inc(1)),
+            _ => run_with::<3>(scene, &out, &opts, |_, _: &Metrics| bar.inc(1)),
+        };
+        bar.finish_and_clear();
+        self.progress.remove(&bar);
+        Ok(r?)
+    }
+}
+
+const EXPERIMENTS: &[Experiment] = &[
+    Experiment {
+        name: "rings",
+        section: "BFEMP 6.1",
+        title: "MPM ring vs FEM ring at 40 m/s: momentum, energy, non-penetration",
+        run: Some(rings::run),
+    },
+    Experiment {
+        name: "sine_boundary",
+        section: "BFEMP 6.2",
+        title: "FEM sine-wave boundary vs level-set slip boundary",
+        run: None,
+    },
+    Experiment {
+        name: "hertz",
+        section: "BFEMP 6.3",
+        title: "Brazilian disk: force vs contact radius against 2D Hertz",
+        run: None,
+    },
+    Experiment {
+        name: "slope",
+        section: "BFEMP 6.4",
+        title: "Stiff MPM box on a frictional FEM slope: g(sinθ − μcosθ), sticking at μ = tanθ",
+        run: Some(slope::run),
+    },
+    Experiment {
+        name: "refinement",
+        section: "BFEMP 6.5",
+        title: "MPM box on FEM box under refinement: convergence order",
+        run: None,
+    },
+    Experiment {
+        name: "buckling",
+        section: "BFEMP 6.6",
+        title: "Semicircular rings compressed: buckling order vs μ",
+        run: None,
+    },
+    Experiment {
+        name: "twist",
+        section: "BFEMP 6.7",
+        title: "3D shell twisting an MPM cube: slip angles vs μ",
+        run: None,
+    },
+    Experiment {
+        name: "two_particles",
+        section: "augury 3.1",
+        title: "Two particles in one cell, APIC vs PIC",
+        run: None,
+    },
+    Experiment {
+        name: "blocks_impact",
+        section: "augury 3.2",
+        title: "Two blocks impacting at an angle: exact momenta",
+        run: None,
+    },
+    Experiment {
+        name: "ramp",
+        section: "augury 3.3",
+        title: "Block sliding down a 30° ramp",
+        run: None,
+    },
+];
+
+/// One experiment's row group in the table and report.
+pub struct Done {
+    name: &'static str,
+    section: &'static str,
+    title: &'static str,
+    wall_s: f64,
+    outcome: Result<Outcome, String>,
+    implemented: bool,
+}
+
+const USAGE: &str = "usage: cargo xtask validate [--quick | --full] [--only NAME…] [--out DIR]";
+
+/// Entry point: parse `args` (after `validate`), run, print, report.
+pub fn main(args: &[String]) -> Result<()> {
+    let mut tier = Tier::Quick;
+    let mut only: Vec<String> = Vec::new();
+    let mut out: Option<PathBuf> = None;
+    let mut it = args.iter();
+    while let Some(a) = it.next() {
+        match a.as_str() {
+            "--quick" => tier = Tier::Quick,
+            "--full" => tier = Tier::Full,
+            "--out" => match it.next() {
+                Some(d) => out = Some(PathBuf::from(d)),
+                None => bail!("--out needs a directory\n{USAGE}"),
+            },
+            "--only" => {
+                let mut any = false;
+                for n in it.by_ref() {
+                    if n.starts_with("--") {
+                        bail!("put --only last: `{n}` after it\n{USAGE}");
+                    }
+                    only.push(n.clone());
+                    any = true;
+                }
+                if !any {
+                    bail!("--only needs experiment names\n{USAGE}");
+                }
+            }
+            "-h" | "--help" => {
+                println!("{USAGE}\n\nexperiments:");
+                for e in EXPERIMENTS {
+                    let mark = if e.run.is_some() {
+                        ""
+                    } else {
+                        " (not implemented yet)"
+                    };
+                    println!("  {:14} {:11} {}{mark}", e.name, e.section, e.title);
+                }
+                return Ok(());
+            }
+            other => bail!("unknown argument `{other}`\n{USAGE}"),
+        }
+    }
+    for n in &only {
+        if !EXPERIMENTS.iter().any(|e| e.name == n) {
+            let names: Vec<_> = EXPERIMENTS.iter().map(|e| e.name).collect();
+            bail!("no experiment `{n}`; experiments: {}", names.join(", "));
+        }
+    }
+    let root = workspace_root();
+    let out = out.unwrap_or_else(|| root.join("target/validation").join(tier.name()));
+    std::fs::create_dir_all(&out)?;
+    let progress = indicatif::MultiProgress::new();
+    let started = Instant::now();
+    let mut done = Vec::new();
+    for e in EXPERIMENTS {
+        if !only.is_empty() && !only.iter().any(|n| n == e.name) {
+            continue;
+        }
+        let Some(run) = e.run else {
+            done.push(Done {
+                name: e.name,
+                section: e.section,
+                title: e.title,
+                wall_s: 0.0,
+                outcome: Ok(Outcome::default()),
+                implemented: false,
+            });
+            continue;
+        };
+        let _ = progress.println(format!("{} ({}): {}", e.name, e.section, e.title));
+        let ctx = Ctx {
+            tier,
+            dir: out.join(e.name),
+            charts: out.join("charts"),
+            root: root.clone(),
+            progress: progress.clone(),
+        };
+        let t = Instant::now();
+        let outcome = run(&ctx).map_err(|err| format!("{err:#}"));
+        let d = Done {
+            name: e.name,
+            section: e.section,
+            title: e.title,
+            wall_s: t.elapsed().as_secs_f64(),
+            outcome,
+            implemented: true,
+        };
+        let _ = progress.println(report::rows(&d).join("\n"));
+        done.push(d);
+    }
+    let total = started.elapsed().as_secs_f64();
+    println!("\n{}", report::table(&done));
+    let failed = report::failures(&done);
+    report::write(&out, tier, &done, total)?;
+    println!("report: {}", out.join("README.md").display());
+    if tier == Tier::Full && only.is_empty() {
+        let docs = root.join("docs/validation");
+        report::publish(&out, &docs)?;
+        println!("published to {}", docs.display());
+    }
+    println!("total wall time {total:.1} s ({} tier)", tier.name());
+    if failed > 0 {
+        bail!("{failed} check(s) failed");
+    }
+    Ok(())
+}
+
+fn workspace_root() -> PathBuf {
+    let here = Path::new(env!("CARGO_MANIFEST_DIR"));
+    here.parent().unwrap_or(here).to_path_buf()
+}
