@@ -176,9 +176,32 @@ pub struct Ctx {
 }
 
 impl Ctx {
-    /// Run a scene (JSON text) through femp with a progress bar; `label` names the run.
-    pub fn run_scene(&self, label: &str, json: &str) -> Result<RunResult> {
+    /// Run a 2D scene, recording `probe(world)` after every step.
+    pub fn run_scene_2d<T>(
+        &self,
+        label: &str,
+        json: &str,
+        mut probe: impl FnMut(&femp::World<2>) -> T,
+    ) -> Result<(RunResult, Vec<T>)> {
         let scene = femp::scene::parse(json, label, self.root.join("fixtures/scenes"), label)?;
+        anyhow::ensure!(scene.spec.dimension == 2, "{label}: not a 2D scene");
+        let bar = self.bar(label, &scene);
+        let out = self.dir.join(label);
+        let opts = RunOptions {
+            no_frames: true,
+            ..Default::default()
+        };
+        let mut probes = Vec::new();
+        let r = run_with::<2>(scene, &out, &opts, |w, _: &Metrics| {
+            probes.push(probe(w));
+            bar.inc(1);
+        });
+        bar.finish_and_clear();
+        self.progress.remove(&bar);
+        Ok((r?, probes))
+    }
+
+    fn bar(&self, label: &str, scene: &femp::scene::Scene) -> indicatif::ProgressBar {
         let steps = (scene.spec.time.duration / scene.spec.time.dt).ceil() as u64;
         let bar = self.progress.add(indicatif::ProgressBar::new(steps));
         bar.set_style(
@@ -188,6 +211,13 @@ impl Ctx {
             .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
         );
         bar.set_prefix(label.to_string());
+        bar
+    }
+
+    /// Run a scene (JSON text) through femp with a progress bar; `label` names the run.
+    pub fn run_scene(&self, label: &str, json: &str) -> Result<RunResult> {
+        let scene = femp::scene::parse(json, label, self.root.join("fixtures/scenes"), label)?;
+        let bar = self.bar(label, &scene);
         let out = self.dir.join(label);
         let opts = RunOptions {
             no_frames: true,
