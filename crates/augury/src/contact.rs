@@ -1,0 +1,199 @@
+//! The augury contact correction (eqs. 29 and 36–46).
+
+use nalgebra::{SMatrix, SVector};
+
+use crate::error::{AuguryError, check_len};
+use crate::operator::{Transfer, TransferKind};
+
+/// What the iterations treat as undesirable in the proposed velocity change `ΔV`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum ContactModel {
+    /// No iterations: `Â = G V̄ / τ` — bodies stick on contact (§2.2).
+    Sticky,
+    /// Eq. 38: a change that pulls a particle away from its surface (`Δv·n > 0`) is undone, so
+    /// bodies can separate; tangential sticking remains.
+    Separation,
+    /// Eqs. 42–46 with Coulomb coefficient μ ≥ 0: separation as above, and the tangential change
+    /// beyond `μ |Δv·n|` is undone (μ = 0: frictionless sliding). `ΔB` is always undone.
+    Friction(f64),
+}
+
+/// Parameters of the correction.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct AuguryParams {
+    /// Look-ahead time τ (s); the paper uses the time step.
+    pub tau: f64,
+    /// Number of augury iterations N (the paper uses 1); ignored for [`ContactModel::Sticky`].
+    pub iterations: usize,
+    /// The contact model.
+    pub model: ContactModel,
+}
+
+impl AuguryParams {
+    fn check(&self) -> Result<(), AuguryError> {
+        if !(self.tau > 0.0 && self.tau.is_finite()) {
+            return Err(AuguryError::BadParameter {
+                name: "tau",
+                value: self.tau,
+                requirement: "must be positive and finite",
+            });
+        }
+        if let ContactModel::Friction(mu) = self.model
+            && !(mu >= 0.0 && mu.is_finite())
+        {
+            return Err(AuguryError::BadParameter {
+                name: "friction coefficient",
+                value: mu,
+                requirement: "must be non-negative and finite",
+            });
+        }
+        Ok(())
+    }
+}
+
+/// Computes `Â = (V̂ − V̄)/τ` for the boundary particles, reusing its buffers between calls.
+pub struct AuguryContact<const D: usize> {
+    transfer: Transfer<D>,
+    params: AuguryParams,
+    hv: Vec<SVector<f64, D>>,
+    hb: Vec<SMatrix<f64, D, D>>,
+    wv: Vec<SVector<f64, D>>,
+    wb: Vec<SMatrix<f64, D, D>>,
+    dv: Vec<SVector<f64, D>>,
+    db: Vec<SMatrix<f64, D, D>>,
+}
+
+impl<const D: usize> AuguryContact<D> {
+    /// A correction with the given transfer and parameters.
+    pub fn new(transfer: Transfer<D>, params: AuguryParams) -> Result<Self, AuguryError> {
+        params.check()?;
+        Ok(Self {
+            transfer,
+            params,
+            hv: Vec::new(),
+            hb: Vec::new(),
+            wv: Vec::new(),
+            wb: Vec::new(),
+            dv: Vec::new(),
+            db: Vec::new(),
+        })
+    }
+
+    /// The transfer `H`.
+    pub fn transfer(&self) -> &Transfer<D> {
+        &self.transfer
+    }
+
+    /// The parameters.
+    pub fn params(&self) -> &AuguryParams {
+        &self.params
+    }
+
+    /// The correction for particles at `x` with masses `mass`, unit outward normals `normal`
+    /// (zero: no constraint on that particle) and predicted field `V̄ = (v̄, B̄)` (eq. 27):
+    /// writes `â` into `a_out` and `Ḃ̂` into `bdot_out`. Returns the number of augury
+    /// iterations that changed anything.
+    #[allow(clippy::too_many_arguments)]
+    pub fn correction(
+        &mut self,
+        x: &[SVector<f64, D>],
+        mass: &[f64],
+        normal: &[SVector<f64, D>],
+        vbar: &[SVector<f64, D>],
+        bbar: &[SMatrix<f64, D, D>],
+        a_out: &mut [SVector<f64, D>],
+        bdot_out: &mut [SMatrix<f64, D, D>],
+    ) -> Result<usize, AuguryError> {
+        let n = x.len();
+        check_len("normals", n, normal.len())?;
+        check_len("predicted B", n, bbar.len())?;
+        check_len("acceleration output", n, a_out.len())?;
+        check_len("B-rate output", n, bdot_out.len())?;
+        let apic = self.transfer.kind() == TransferKind::Apic;
+        for buf in [&mut self.hv, &mut self.wv, &mut self.dv] {
+            buf.resize(n, SVector::zeros());
+        }
+        for buf in [&mut self.hb, &mut self.wb, &mut self.db] {
+            buf.resize(n, SMatrix::zeros());
+        }
+        self.transfer.set_positions(x)?;
+        // ΔV₀ = G V̄ = H V̄ − V̄.
+        self.transfer
+            .apply(mass, vbar, bbar, &mut self.hv, &mut self.hb)?;
+        for p in 0..n {
+            self.dv[p] = self.hv[p] - vbar[p];
+            self.db[p] = if apic {
+                self.hb[p] - bbar[p]
+            } else {
+                SMatrix::zeros()
+            };
+        }
+        let iterations = match self.params.model {
+            ContactModel::Sticky => 0,
+            _ => self.params.iterations,
+        };
+        let mut active = 0;
+        for _ in 0..iterations {
+            // W = the undesirable part of the change proposed so far (eq. 38 / 44–46).
+            let mut any = false;
+            for p in 0..n {
+                let (w, wb) = undesirable(self.params.model, &self.dv[p], &self.db[p], &normal[p]);
+                any |= w != SVector::<f64, D>::zeros() || wb != SMatrix::<f64, D, D>::zeros();
+                self.wv[p] = w;
+                self.wb[p] = if apic { wb } else { SMatrix::zeros() };
+            }
+            if !any {
+                break;
+            }
+            active += 1;
+            // ΔV += G W.
+            self.transfer
+                .apply(mass, &self.wv, &self.wb, &mut self.hv, &mut self.hb)?;
+            for p in 0..n {
+                self.dv[p] += self.hv[p] - self.wv[p];
+                if apic {
+                    self.db[p] += self.hb[p] - self.wb[p];
+                }
+            }
+        }
+        let inv_tau = 1.0 / self.params.tau;
+        for p in 0..n {
+            a_out[p] = self.dv[p] * inv_tau;
+            bdot_out[p] = self.db[p] * inv_tau;
+        }
+        Ok(active)
+    }
+}
+
+/// The undesirable part `(Δv^u, ΔB^u)` of a proposed change.
+fn undesirable<const D: usize>(
+    model: ContactModel,
+    dv: &SVector<f64, D>,
+    db: &SMatrix<f64, D, D>,
+    n: &SVector<f64, D>,
+) -> (SVector<f64, D>, SMatrix<f64, D, D>) {
+    if *n == SVector::<f64, D>::zeros() {
+        return (SVector::zeros(), SMatrix::zeros());
+    }
+    let dn = dv.dot(n);
+    match model {
+        ContactModel::Sticky => (SVector::zeros(), SMatrix::zeros()),
+        ContactModel::Separation => {
+            if dn > 0.0 {
+                (*dv, *db)
+            } else {
+                (SVector::zeros(), SMatrix::zeros())
+            }
+        }
+        ContactModel::Friction(mu) => {
+            if dn > 0.0 {
+                return (*dv, *db);
+            }
+            let t = dv - n * dn;
+            let tl = t.norm();
+            let s = tl.min(-mu * dn);
+            let w = if tl > 0.0 { t * (1.0 - s / tl) } else { t };
+            (w, *db)
+        }
+    }
+}
