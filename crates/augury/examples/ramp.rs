@@ -1,0 +1,39 @@
+//! §3.3 in 2D: block sliding down a 30° ramp; displacement error against ½ a t² per mesh size.
+//!
+//! `cargo run --release -p femp-augury --example ramp`
+
+use femp_augury::TransferKind;
+use femp_augury::scenes::ramp;
+
+fn main() {
+    let t_end = 0.2;
+    let iterations: usize = std::env::var("ITER")
+        .ok()
+        .and_then(|s| s.parse().ok())
+        .unwrap_or(1);
+    for kind in [TransferKind::Apic, TransferKind::Pic] {
+        for mu in [0.0, 0.2, 0.4] {
+            for h in [1.0, 0.5, 0.25] {
+                let dt = std::env::var("DTF")
+                    .ok()
+                    .and_then(|s| s.parse::<f64>().ok())
+                    .unwrap_or(2.5e-4)
+                    * h;
+                let t0 = std::time::Instant::now();
+                match ramp(h, mu, kind, t_end, dt, iterations) {
+                    Ok(r) => {
+                        let (t, s) = *r.displacement.last().unwrap();
+                        let exact = 0.5 * r.analytic_acceleration * t * t;
+                        println!(
+                            "{kind:?} μ = {mu} h = {h}: s({t:.3}) = {s:.5} vs {exact:.5} (error {:+.2} %), {} steps, {:.1} s",
+                            100.0 * (s - exact) / exact.max(1e-12),
+                            r.steps,
+                            t0.elapsed().as_secs_f64()
+                        );
+                    }
+                    Err(e) => println!("{kind:?} μ = {mu} h = {h}: {e}"),
+                }
+            }
+        }
+    }
+}
