@@ -121,7 +121,8 @@ where
         .x_desc(&chart.x_label)
         .y_desc(&chart.y_label)
         .label_style(("sans-serif", 14))
-        .y_label_formatter(&|v| format!("{v:.3e}"))
+        .y_label_formatter(&|v| axis_label(*v, y1 - y0))
+        .x_label_formatter(&|v| axis_label(*v, x1 - x0))
         .draw()
         .map_err(|e| anyhow::anyhow!("{e:?}"))?;
     for s in &chart.series {
@@ -153,6 +154,20 @@ where
         .map_err(|e| anyhow::anyhow!("{e:?}"))?;
     root.present().map_err(|e| anyhow::anyhow!("{e:?}"))?;
     Ok(())
+}
+
+/// A tick label: `0` for values at round-off of the axis range, plain decimals for moderate
+/// magnitudes, scientific otherwise.
+fn axis_label(v: f64, range: f64) -> String {
+    if v.abs() <= 1e-9 * range.abs() {
+        "0".into()
+    } else if (1e-2..1e4).contains(&v.abs()) {
+        let s = format!("{v:.4}");
+        let s = s.trim_end_matches('0').trim_end_matches('.');
+        s.to_string()
+    } else {
+        format!("{v:.2e}")
+    }
 }
 
 /// Write `dir/<stem>.png` and `dir/<stem>.svg`; returns the PNG path.

@@ -9,6 +9,7 @@
 //! tier uses the papers' parameters and rewrites `docs/validation/`. Every failure is collected;
 //! the exit code is non-zero if any check fails.
 
+mod augury;
 mod charts;
 mod report;
 mod rings;
@@ -280,19 +281,19 @@ const EXPERIMENTS: &[Experiment] = &[
         name: "two_particles",
         section: "augury 3.1",
         title: "Two particles in one cell, APIC vs PIC",
-        run: None,
+        run: Some(augury::two_particles),
     },
     Experiment {
         name: "blocks_impact",
         section: "augury 3.2",
         title: "Two blocks impacting at an angle: exact momenta",
-        run: None,
+        run: Some(augury::blocks_impact),
     },
     Experiment {
         name: "ramp",
         section: "augury 3.3",
         title: "Block sliding down a 30° ramp",
-        run: None,
+        run: Some(augury::ramp_experiment),
     },
 ];
 
