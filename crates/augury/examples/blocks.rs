@@ -3,10 +3,17 @@
 //!
 //! `cargo run --release -p femp-augury --example blocks`
 
-use femp_augury::scenes::head_on_blocks;
+use femp_augury::scenes::{BlocksContact, head_on_blocks};
 use femp_augury::{ContactModel, TransferKind};
 
 fn main() {
+    match head_on_blocks(BlocksContact::Penalty, 0.0) {
+        Ok(r) => println!(
+            "penalty baseline: relative speed at 0.8 s {:+.3} m/s (approach −2), closest gap {:.4} m, momentum drift {:.1e}",
+            r.separation_speed, r.min_gap, r.max_p_error
+        ),
+        Err(e) => println!("penalty baseline: {e}"),
+    }
     for model in [
         ContactModel::Sticky,
         ContactModel::Separation,
@@ -14,7 +21,7 @@ fn main() {
         ContactModel::Friction(0.3),
     ] {
         for kind in [TransferKind::Apic, TransferKind::Pic] {
-            match head_on_blocks(model, kind, 0.0) {
+            match head_on_blocks(BlocksContact::Augury(model, kind), 0.0) {
                 Ok(r) => println!(
                     "{model:?} {kind:?}: relative speed at 0.8 s {:+.3} m/s (approach −2), closest gap {:.3} m, momentum drift {:.1e}",
                     r.separation_speed, r.min_gap, r.max_p_error

@@ -131,6 +131,72 @@ impl<const D: usize> ExplicitBody<D> {
     }
 }
 
+/// The search-based baseline: explicit node-to-surface penalty contact. Every boundary vertex
+/// of every body is tested against the boundary facets of every other body found by
+/// femp-contact's broad phase within `band`; a vertex behind its nearest facet (signed gap
+/// `g < 0` along the facet's outward normal, `|g| < band`) gets the force `−k g n` and the facet's
+/// vertices the opposite force split by barycentric weights (so linear momentum is conserved).
+pub struct PenaltyContact<const D: usize> {
+    /// Stiffness `k` (force per unit penetration).
+    pub stiffness: f64,
+    /// Search band (penetration depth beyond which a pair is ignored, and broad-phase distance).
+    pub band: f64,
+    candidates: femp_contact::broad_phase::Candidates,
+    facets: Vec<[u32; 3]>,
+    points: Vec<usize>,
+    positions: Vec<SVector<f64, D>>,
+    /// Active vertex–facet pairs in the last evaluation.
+    pub active: usize,
+}
+
+impl<const D: usize> PenaltyContact<D> {
+    /// A penalty contact with stiffness `k` and search band.
+    pub fn new(stiffness: f64, band: f64) -> Result<Self, AuguryError> {
+        for (name, value) in [("penalty stiffness", stiffness), ("penalty band", band)] {
+            if !(value > 0.0 && value.is_finite()) {
+                return Err(AuguryError::BadParameter {
+                    name,
+                    value,
+                    requirement: "must be positive and finite",
+                });
+            }
+        }
+        Ok(Self {
+            stiffness,
+            band,
+            candidates: Default::default(),
+            facets: Vec::new(),
+            points: Vec::new(),
+            positions: Vec::new(),
+            active: 0,
+        })
+    }
+}
+
+/// Closest point of facet `f` to `p`, with the barycentric weights of the facet's vertices.
+fn closest_on_facet<const D: usize>(
+    p: &SVector<f64, D>,
+    f: &[usize; 3],
+    x: &[SVector<f64, D>],
+) -> (SVector<f64, D>, [f64; 3]) {
+    if D == 2 {
+        let (a, b) = (x[f[0]], x[f[1]]);
+        let e = b - a;
+        let t = ((p - a).dot(&e) / e.norm_squared()).clamp(0.0, 1.0);
+        (a + e * t, [1.0 - t, t, 0.0])
+    } else {
+        use femp_contact::distance::point_triangle;
+        let l = |q: &SVector<f64, D>| Vector3::new(q[0], q[1], q[D - 1]);
+        let (a, b, c) = (l(&x[f[0]]), l(&x[f[1]]), l(&x[f[2]]));
+        let q = point_triangle::closest_point(&l(p), &a, &b, &c);
+        let (u, v) = point_triangle::barycentric(&q, &a, &b, &c).unwrap_or((0.0, 0.0));
+        (
+            SVector::<f64, D>::from_fn(|i, _| q[if i < 2 { i } else { 2 }]),
+            [1.0 - u - v, u, v],
+        )
+    }
+}
+
 /// Parameters of the explicit system.
 pub struct ExplicitParams<const D: usize> {
     /// Time step Δt.
@@ -149,6 +215,8 @@ pub struct ExplicitSystem<const D: usize> {
     pub time: f64,
     /// The contact correction (None: bodies pass through each other).
     pub contact: Option<AuguryContact<D>>,
+    /// The search-based penalty baseline (used instead of, or besides, augury contact).
+    pub penalty: Option<PenaltyContact<D>>,
     /// `B_p` of every boundary particle (bodies concatenated in order).
     pub b: Vec<SMatrix<f64, D, D>>,
     /// Contact rate of `B_p` (its acceleration).
@@ -175,6 +243,7 @@ impl<const D: usize> ExplicitSystem<D> {
             params,
             time: 0.0,
             contact,
+            penalty: None,
             b: vec![SMatrix::zeros(); n],
             bdot: vec![SMatrix::zeros(); n],
             px: Vec::with_capacity(n),
@@ -211,6 +280,9 @@ impl<const D: usize> ExplicitSystem<D> {
             b.elastic
                 .add_gradient(&b.x, 1.0, &mut b.force)
                 .map_err(|e| AuguryError::Fem(format!("body `{}`: {e}", b.name)))?;
+        }
+        self.penalty_forces();
+        for b in &mut self.bodies {
             for k in 0..b.x.len() {
                 b.a[k] = if b.fixed[k] {
                     SVector::zeros()
@@ -220,6 +292,76 @@ impl<const D: usize> ExplicitSystem<D> {
             }
         }
         Ok(())
+    }
+
+    /// Penalty forces of the baseline, added to each body's `force` (which holds `∇Ψ`, so a
+    /// physical force `F` is added as `−F`).
+    pub fn penalty_forces(&mut self) -> usize {
+        let Some(pen) = self.penalty.as_mut() else {
+            return 0;
+        };
+        pen.active = 0;
+        let nb = self.bodies.len();
+        for ib in 0..nb {
+            for jb in 0..nb {
+                if ib == jb {
+                    continue;
+                }
+                // Vertices of body `ib` against facets of body `jb`.
+                pen.facets.clear();
+                pen.facets.extend(
+                    self.bodies[jb]
+                        .facets
+                        .iter()
+                        .map(|f| [f[0] as u32, f[1] as u32, f[2] as u32]),
+                );
+                pen.points.clear();
+                pen.points.extend_from_slice(&self.bodies[ib].boundary);
+                pen.positions.clear();
+                pen.positions
+                    .extend(pen.points.iter().map(|&v| self.bodies[ib].x[v]));
+                femp_contact::broad_phase::candidates_within(
+                    &pen.positions,
+                    &self.bodies[jb].x,
+                    &pen.facets,
+                    pen.band,
+                    &mut pen.candidates,
+                );
+                for q in 0..pen.positions.len() {
+                    let p = &pen.positions[q];
+                    // The nearest candidate facet decides.
+                    let mut best: Option<(f64, usize, SVector<f64, D>, [f64; 3])> = None;
+                    for &f in pen.candidates.of(q) {
+                        let fv = &self.bodies[jb].facets[f as usize];
+                        let (c, w) = closest_on_facet(p, fv, &self.bodies[jb].x);
+                        let d = (p - c).norm_squared();
+                        if best.as_ref().is_none_or(|b| d < b.0) {
+                            best = Some((d, f as usize, c, w));
+                        }
+                    }
+                    let Some((_, f, c, w)) = best else { continue };
+                    let fv = self.bodies[jb].facets[f];
+                    let n = facet_normal::<D>(&fv, &self.bodies[jb].x);
+                    let len = n.norm();
+                    if len == 0.0 {
+                        continue;
+                    }
+                    let n = n / len;
+                    let g = (p - c).dot(&n);
+                    if g >= 0.0 || g < -pen.band {
+                        continue;
+                    }
+                    pen.active += 1;
+                    let force = n * (-pen.stiffness * g);
+                    let v = pen.points[q];
+                    self.bodies[ib].force[v] -= force;
+                    for k in 0..D {
+                        self.bodies[jb].force[fv[k]] += force * w[k];
+                    }
+                }
+            }
+        }
+        pen.active
     }
 
     /// Add the augury correction for the predicted field `V̄ = V + τ A` (eq. 27), with `V` the

@@ -11,6 +11,8 @@
 //!   the separation (eq. 38) or Coulomb friction (eqs. 42–46) iterations (eq. 36–37).
 //! * [`explicit`] — explicit central-difference FEM dynamics (eq. 32) of several bodies whose
 //!   boundary vertices are the augury particles.
+//! * [`explicit::PenaltyContact`] — the search-based baseline: node-to-surface penalty contact
+//!   with femp-contact's broad phase, for the efficiency comparison.
 //! * [`two_particle`] — the 1D two-particle analysis of §3.1 (eqs. 47–50) as an ODE.
 //!
 //! Momentum conservation is structural: every term of the correction is `G` applied to some

@@ -5,7 +5,7 @@ use femp_fem::{Material, NeoHookean};
 use femp_kernels::Kernel;
 use nalgebra::{Vector2, Vector3};
 
-use crate::explicit::{ExplicitBody, ExplicitParams, ExplicitSystem};
+use crate::explicit::{ExplicitBody, ExplicitParams, ExplicitSystem, PenaltyContact};
 use crate::{AuguryContact, AuguryError, AuguryParams, ContactModel, Transfer, TransferKind};
 
 /// What [`head_on_blocks`] measured.
@@ -24,15 +24,21 @@ pub struct BlocksRun {
     pub steps: usize,
 }
 
+/// How the blocks of [`head_on_blocks`] touch.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum BlocksContact {
+    /// Augury contact with this model and transfer (one iteration).
+    Augury(ContactModel, TransferKind),
+    /// The search-based penalty baseline (stiffness 2·E per unit penetration, band half the
+    /// mesh size).
+    Penalty,
+}
+
 /// Two 1 × 1 m neo-Hookean blocks (E = 1e3 Pa, ν = 0.3, ρ = 1, 8 × 8 cells each), 1 m apart,
 /// approaching at 1 m/s each; block B is raised by `offset` (0: head-on). Grid spacing twice the
 /// mesh size, quadratic B-spline, τ = Δt = half the stable step, one augury iteration; run for
 /// 0.8 s without gravity.
-pub fn head_on_blocks(
-    model: ContactModel,
-    kind: TransferKind,
-    offset: f64,
-) -> Result<BlocksRun, AuguryError> {
+pub fn head_on_blocks(contact: BlocksContact, offset: f64) -> Result<BlocksRun, AuguryError> {
     const E: f64 = 1e3;
     const NU: f64 = 0.3;
     const RHO: f64 = 1.0;
@@ -46,7 +52,6 @@ pub fn head_on_blocks(
         Ok(b)
     };
     let bodies = vec![block("a", -1.5, 0.0, 1.0)?, block("b", 0.5, offset, -1.0)?];
-    let transfer = Transfer::<2>::new(2.0 / 8.0, Kernel::Quadratic, kind)?;
     let mu = E / (2.0 * (1.0 + NU));
     let lambda = E * NU / ((1.0 + NU) * (1.0 - 2.0 * NU));
     let params = |dt| ExplicitParams {
@@ -55,15 +60,26 @@ pub fn head_on_blocks(
     };
     let probe = ExplicitSystem::new(bodies, params(1.0), None);
     let dt = probe.stable_dt(&[(mu, lambda, RHO), (mu, lambda, RHO)], 0.5);
-    let contact = AuguryContact::new(
-        transfer,
-        AuguryParams {
-            tau: dt,
-            iterations: 1,
-            model,
-        },
-    )?;
-    let mut sys = ExplicitSystem::new(probe.bodies, params(dt), Some(contact));
+    let mut sys = match contact {
+        BlocksContact::Augury(model, kind) => {
+            let transfer = Transfer::<2>::new(2.0 / 8.0, Kernel::Quadratic, kind)?;
+            let aug = AuguryContact::new(
+                transfer,
+                AuguryParams {
+                    tau: dt,
+                    iterations: 1,
+                    model,
+                },
+            )?;
+            ExplicitSystem::new(probe.bodies, params(dt), Some(aug))
+        }
+        BlocksContact::Penalty => {
+            let mut sys = ExplicitSystem::new(probe.bodies, params(dt), None);
+            // Stable with the explicit step: √(k/m) Δt ≈ 0.5 for the vertex masses here.
+            sys.penalty = Some(PenaltyContact::new(2.0 * E, 0.5 / 8.0)?);
+            sys
+        }
+    };
     let p0 = sys.momentum();
     let l0 = sys.angular_momentum();
     let p_scale: f64 = sys

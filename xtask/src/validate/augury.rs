@@ -1,7 +1,7 @@
 //! The augury paper's experiments (§3.1–3.3) through `femp-augury`.
 
 use anyhow::Result;
-use femp_augury::scenes::{head_on_blocks, ramp};
+use femp_augury::scenes::{BlocksContact, head_on_blocks, ramp};
 use femp_augury::two_particle::{integrate, simulate};
 use femp_augury::{ContactModel, TransferKind};
 use femp_kernels::Kernel;
@@ -99,7 +99,7 @@ pub fn blocks_impact(_ctx: &Ctx) -> Result<Outcome> {
     let mut out = Outcome::default();
     for model in [ContactModel::Sticky, ContactModel::Separation] {
         for kind in [TransferKind::Apic, TransferKind::Pic] {
-            let r = head_on_blocks(model, kind, 0.4)?;
+            let r = head_on_blocks(BlocksContact::Augury(model, kind), 0.4)?;
             let tag = format!("{kind:?} {model:?}");
             out.checks.push(Check::at_most(
                 &format!("{tag}: max |Δp| / Σm|v|"),
