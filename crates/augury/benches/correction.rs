@@ -10,16 +10,17 @@ use femp_augury::{AuguryContact, AuguryParams, ContactModel, Transfer, TransferK
 use femp_kernels::Kernel;
 use nalgebra::{SMatrix, SVector};
 
-/// Points on the surfaces of two unit boxes side by side (gap `s/2`), spacing `s`, with outward
-/// normals and velocities towards each other.
-fn surfaces<const D: usize>(
-    target: usize,
-) -> (
+/// Positions, outward normals, velocities, and the particle spacing.
+type Surfaces<const D: usize> = (
     Vec<SVector<f64, D>>,
     Vec<SVector<f64, D>>,
     Vec<SVector<f64, D>>,
     f64,
-) {
+);
+
+/// Points on the surfaces of two unit boxes side by side (gap `s/2`), spacing `s`, with outward
+/// normals and velocities towards each other.
+fn surfaces<const D: usize>(target: usize) -> Surfaces<D> {
     // Surface points per box ≈ 2D: 4/s; 3D: 6/s².
     let s = if D == 2 {
         8.0 / target as f64
@@ -29,8 +30,7 @@ fn surfaces<const D: usize>(
     let k = (1.0 / s).round() as usize;
     let s = 1.0 / k as f64;
     let (mut x, mut n, mut v) = (Vec::new(), Vec::new(), Vec::new());
-    for (body, shift, vel) in [(0, 0.0, 1.0), (1, 1.0 + 0.5 * s, -1.0)] {
-        let _ = body;
+    for (shift, vel) in [(0.0, 1.0), (1.0 + 0.5 * s, -1.0)] {
         let total = (k + 1).pow(D as u32);
         for flat in 0..total {
             let mut rem = flat;
