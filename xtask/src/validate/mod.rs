@@ -11,6 +11,7 @@
 
 mod augury;
 mod charts;
+mod refinement;
 mod report;
 mod rings;
 mod slope;
@@ -263,7 +264,7 @@ const EXPERIMENTS: &[Experiment] = &[
         name: "refinement",
         section: "BFEMP 6.5",
         title: "MPM box on FEM box under refinement: convergence order",
-        run: None,
+        run: Some(refinement::run),
     },
     Experiment {
         name: "buckling",
@@ -314,7 +315,7 @@ pub fn main(args: &[String]) -> Result<()> {
     let mut tier = Tier::Quick;
     let mut only: Vec<String> = Vec::new();
     let mut out: Option<PathBuf> = None;
-    let mut it = args.iter();
+    let mut it = args.iter().peekable();
     while let Some(a) = it.next() {
         match a.as_str() {
             "--quick" => tier = Tier::Quick,
@@ -324,15 +325,10 @@ pub fn main(args: &[String]) -> Result<()> {
                 None => bail!("--out needs a directory\n{USAGE}"),
             },
             "--only" => {
-                let mut any = false;
-                for n in it.by_ref() {
-                    if n.starts_with("--") {
-                        bail!("put --only last: `{n}` after it\n{USAGE}");
-                    }
+                while let Some(n) = it.next_if(|n| !n.starts_with("--")) {
                     only.push(n.clone());
-                    any = true;
                 }
-                if !any {
+                if only.is_empty() {
                     bail!("--only needs experiment names\n{USAGE}");
                 }
             }
