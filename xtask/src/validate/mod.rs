@@ -2,7 +2,7 @@
 //! compared with the analytic answer or the paper's number, one table, charts and a report.
 //!
 //! ```text
-//! cargo xtask validate [--quick | --full] [--only NAME…] [--out DIR]
+//! cargo xtask validate [--quick | --full] [--only NAME…] [--out DIR] [--publish]
 //! ```
 //!
 //! The quick tier (default) uses coarser resolutions that keep each check meaningful; the full
@@ -14,6 +14,7 @@ mod charts;
 mod refinement;
 mod report;
 mod rings;
+mod sine;
 mod slope;
 
 use std::path::{Path, PathBuf};
@@ -246,7 +247,7 @@ const EXPERIMENTS: &[Experiment] = &[
         name: "sine_boundary",
         section: "BFEMP 6.2",
         title: "FEM sine-wave boundary vs level-set slip boundary",
-        run: None,
+        run: Some(sine::run),
     },
     Experiment {
         name: "hertz",
@@ -308,17 +309,26 @@ pub struct Done {
     implemented: bool,
 }
 
-const USAGE: &str = "usage: cargo xtask validate [--quick | --full] [--only NAME…] [--out DIR]";
+const USAGE: &str =
+    "usage: cargo xtask validate [--quick | --full] [--only NAME…] [--out DIR] [--publish]
+
+  --quick    coarse resolutions, minutes (default)
+  --full     the papers' parameters; with no --only, rewrites docs/validation/
+  --only     run only these experiments
+  --out      output directory (default target/validation/<tier>)
+  --publish  copy the report and charts into docs/validation/ whatever the tier";
 
 /// Entry point: parse `args` (after `validate`), run, print, report.
 pub fn main(args: &[String]) -> Result<()> {
     let mut tier = Tier::Quick;
     let mut only: Vec<String> = Vec::new();
+    let mut publish = false;
     let mut out: Option<PathBuf> = None;
     let mut it = args.iter().peekable();
     while let Some(a) = it.next() {
         match a.as_str() {
             "--quick" => tier = Tier::Quick,
+            "--publish" => publish = true,
             "--full" => tier = Tier::Full,
             "--out" => match it.next() {
                 Some(d) => out = Some(PathBuf::from(d)),
@@ -400,7 +410,7 @@ pub fn main(args: &[String]) -> Result<()> {
     let failed = report::failures(&done);
     report::write(&out, tier, &done, total)?;
     println!("report: {}", out.join("README.md").display());
-    if tier == Tier::Full && only.is_empty() {
+    if (tier == Tier::Full && only.is_empty()) || publish {
         let docs = root.join("docs/validation");
         report::publish(&out, &docs)?;
         println!("published to {}", docs.display());

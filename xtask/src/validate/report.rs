@@ -80,6 +80,15 @@ pub fn write(out: &Path, tier: Tier, done: &[Done], total_s: f64) -> Result<()> 
         tier.name(),
         std::env::var("FEMP_REPORT_DATE").unwrap_or_else(|_| "this machine".into())
     );
+    if tier == Tier::Quick {
+        let _ = writeln!(
+            s,
+            "This is the **quick tier**: coarser resolutions that keep each check meaningful (each \
+             section says what it uses). The full tier (`cargo xtask validate --full`) runs the \
+             papers' parameters; its §6.1 figures at the paper's resolution are in \
+             `docs/performance.md`.\n"
+        );
+    }
     let (pass, fail, info) = done
         .iter()
         .filter_map(|d| d.outcome.as_ref().ok())
