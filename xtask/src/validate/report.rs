@@ -68,6 +68,11 @@ pub fn failures(done: &[Done]) -> usize {
         .sum()
 }
 
+/// A Markdown table cell: `|` escaped.
+fn cell(s: &str) -> String {
+    s.replace('|', "\\|")
+}
+
 /// Write `out/README.md`.
 pub fn write(out: &Path, tier: Tier, done: &[Done], total_s: f64) -> Result<()> {
     let mut s = String::new();
@@ -148,10 +153,10 @@ pub fn write(out: &Path, tier: Tier, done: &[Done], total_s: f64) -> Result<()> 
                         "| {} | {} | {} | {} | {} | {} | {} | {} |",
                         if k == 0 { d.name } else { "" },
                         if k == 0 { d.section } else { "" },
-                        c.figure,
-                        c.measured,
-                        c.expected,
-                        c.tolerance,
+                        cell(&c.figure),
+                        cell(&c.measured),
+                        cell(&c.expected),
+                        cell(&c.tolerance),
                         status,
                         if k == 0 {
                             format!("{:.1} s", d.wall_s)
