@@ -28,8 +28,8 @@ pub struct ExplicitBody<const D: usize> {
     pub fixed: Vec<bool>,
     /// Boundary vertices (the contact particles), in order.
     pub boundary: Vec<usize>,
-    /// Boundary facets (vertex indices).
-    facets: Vec<[usize; 3]>,
+    /// The boundary (facets, normals).
+    surface: Boundary<D>,
     /// Position of each vertex in `boundary` (`usize::MAX` inside).
     slot: Vec<usize>,
     force: Vec<SVector<f64, D>>,
@@ -61,7 +61,7 @@ impl<const D: usize> ExplicitBody<D> {
             mass,
             fixed: vec![false; n],
             boundary: b.vertices().to_vec(),
-            facets: b.facets().to_vec(),
+            surface: b,
             slot,
             force: vec![SVector::zeros(); n],
         })
@@ -311,7 +311,8 @@ impl<const D: usize> ExplicitSystem<D> {
                 pen.facets.clear();
                 pen.facets.extend(
                     self.bodies[jb]
-                        .facets
+                        .surface
+                        .facets()
                         .iter()
                         .map(|f| [f[0] as u32, f[1] as u32, f[2] as u32]),
                 );
@@ -332,7 +333,7 @@ impl<const D: usize> ExplicitSystem<D> {
                     // The nearest candidate facet decides.
                     let mut best: Option<(f64, usize, SVector<f64, D>, [f64; 3])> = None;
                     for &f in pen.candidates.of(q) {
-                        let fv = &self.bodies[jb].facets[f as usize];
+                        let fv = &self.bodies[jb].surface.facets()[f as usize];
                         let (c, w) = closest_on_facet(p, fv, &self.bodies[jb].x);
                         let d = (p - c).norm_squared();
                         if best.as_ref().is_none_or(|b| d < b.0) {
@@ -340,8 +341,8 @@ impl<const D: usize> ExplicitSystem<D> {
                         }
                     }
                     let Some((_, f, c, w)) = best else { continue };
-                    let fv = self.bodies[jb].facets[f];
-                    let n = facet_normal::<D>(&fv, &self.bodies[jb].x);
+                    let fv = self.bodies[jb].surface.facets()[f];
+                    let n = self.bodies[jb].surface.facet_normal(f, &self.bodies[jb].x);
                     let len = n.norm();
                     if len == 0.0 {
                         continue;
@@ -385,9 +386,9 @@ impl<const D: usize> ExplicitSystem<D> {
         for b in &self.bodies {
             let start = self.pn.len();
             self.pn.resize(start + b.boundary.len(), SVector::zeros());
-            for f in &b.facets {
-                let n = facet_normal::<D>(f, &b.x);
-                for &v in &f[..D] {
+            for (f, fv) in b.surface.facets().iter().enumerate() {
+                let n = b.surface.facet_normal(f, &b.x);
+                for &v in &fv[..D] {
                     self.pn[start + b.slot[v]] += n;
                 }
             }
@@ -481,15 +482,9 @@ impl<const D: usize> ExplicitSystem<D> {
         let mut l = Vector3::zeros();
         let mut k = 0;
         for b in &self.bodies {
-            let lb = crate::operator::angular_momentum(&b.mass, &b.x, &b.v, None);
-            l += lb;
+            l += crate::operator::angular_momentum(&b.mass, &b.x, &b.v, None);
             for &v in &b.boundary {
-                l += crate::operator::angular_momentum(
-                    &[b.mass[v]],
-                    &[SVector::zeros()],
-                    &[SVector::zeros()],
-                    Some(&self.b[k..k + 1]),
-                );
+                l += femp_kernels::transfer::apic_spin(&self.b[k]) * b.mass[v];
                 k += 1;
             }
         }
@@ -515,20 +510,4 @@ impl<const D: usize> ExplicitSystem<D> {
             .map(|b| b.elastic.energy(&b.x).unwrap_or(f64::INFINITY))
             .sum()
     }
-}
-
-/// Outward facet normal scaled by the facet's measure.
-fn facet_normal<const D: usize>(f: &[usize; 3], x: &[SVector<f64, D>]) -> SVector<f64, D> {
-    let mut n = SVector::<f64, D>::zeros();
-    if D == 2 {
-        let d = x[f[1]] - x[f[0]];
-        n[0] = d[1];
-        n[1] = -d[0];
-    } else {
-        let (a, b) = (x[f[1]] - x[f[0]], x[f[2]] - x[f[0]]);
-        n[0] = 0.5 * (a[1] * b[D - 1] - a[D - 1] * b[1]);
-        n[1] = 0.5 * (a[D - 1] * b[0] - a[0] * b[D - 1]);
-        n[D - 1] = 0.5 * (a[0] * b[1] - a[1] * b[0]);
-    }
-    n
 }

@@ -118,7 +118,7 @@ pub fn angular_momentum<const D: usize>(
         let (x3, v3) = (lift(&xp), lift(&vp));
         l += x3.cross(&v3) * mass[p];
         if let Some(b) = b {
-            l += spin(&b[p]) * mass[p];
+            l += transfer::apic_spin(&b[p]) * mass[p];
         }
     }
     l
@@ -126,17 +126,4 @@ pub fn angular_momentum<const D: usize>(
 
 fn lift<const D: usize>(v: &SVector<f64, D>) -> Vector3<f64> {
     Vector3::new(v[0], v[1], if D == 3 { v[D - 1] } else { 0.0 })
-}
-
-/// `ε : Bᵀ` as a 3-vector.
-fn spin<const D: usize>(b: &SMatrix<f64, D, D>) -> Vector3<f64> {
-    if D == 2 {
-        Vector3::new(0.0, 0.0, b[(1, 0)] - b[(0, 1)])
-    } else {
-        Vector3::new(
-            b[(D - 1, 1)] - b[(1, D - 1)],
-            b[(0, D - 1)] - b[(D - 1, 0)],
-            b[(1, 0)] - b[(0, 1)],
-        )
-    }
 }

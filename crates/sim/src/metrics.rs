@@ -2,7 +2,7 @@
 //! count.
 
 use femp_fem::Hyperelastic;
-use nalgebra::{SMatrix, SVector, Vector3};
+use nalgebra::{SVector, Vector3};
 
 use crate::world::{Points, World, inside_elements};
 
@@ -115,18 +115,6 @@ fn cross3<const D: usize>(x: &SVector<f64, D>, v: &SVector<f64, D>) -> Vector3<f
     }
 }
 
-fn spin<const D: usize>(b: &SMatrix<f64, D, D>) -> Vector3<f64> {
-    if D == 2 {
-        Vector3::new(0.0, 0.0, b[(1, 0)] - b[(0, 1)])
-    } else {
-        Vector3::new(
-            b[(D - 1, 1)] - b[(1, D - 1)],
-            b[(0, D - 1)] - b[(D - 1, 0)],
-            b[(1, 0)] - b[(0, 1)],
-        )
-    }
-}
-
 impl<const D: usize> World<D> {
     /// Measure the current state (without solver data: those come from the step report).
     pub fn measure(&self) -> Metrics {
@@ -155,7 +143,7 @@ impl<const D: usize> World<D> {
                 }
                 l += cross3(&x, &v) * mass;
                 if apic {
-                    l += spin(&mpm.b[q]) * mass;
+                    l += femp_kernels::transfer::apic_spin(&mpm.b[q]) * mass;
                 }
             }
         }

@@ -7,7 +7,7 @@
 use anyhow::Result;
 
 use super::charts::{self, Chart, Series};
-use super::{Check, Ctx, Outcome, Status, Tier};
+use super::{Check, Ctx, Outcome, Status, Tier, least_squares_slope};
 
 fn scene(n: usize, ppc: usize, duration: f64, dt: f64) -> String {
     let dx = 1.0 / n as f64;
@@ -41,21 +41,12 @@ fn scene(n: usize, ppc: usize, duration: f64, dt: f64) -> String {
 
 /// Least-squares slope of log(err) against log(Δx).
 fn order(points: &[(f64, f64)]) -> f64 {
-    let pts: Vec<(f64, f64)> = points
+    let logs: Vec<(f64, f64)> = points
         .iter()
         .filter(|p| p.1 > 0.0)
         .map(|&(dx, e)| (dx.ln(), e.ln()))
         .collect();
-    let n = pts.len() as f64;
-    let (mx, my) = pts
-        .iter()
-        .fold((0.0, 0.0), |(a, b), p| (a + p.0 / n, b + p.1 / n));
-    let (mut num, mut den) = (0.0, 0.0);
-    for &(x, y) in &pts {
-        num += (x - mx) * (y - my);
-        den += (x - mx) * (x - mx);
-    }
-    num / den
+    least_squares_slope(&logs)
 }
 
 /// Run the experiment.

@@ -14,7 +14,7 @@
 use anyhow::Result;
 
 use super::charts::{self, Chart, Series};
-use super::{Check, Ctx, Outcome, Tier};
+use super::{Check, Ctx, Outcome, Tier, least_squares_slope};
 
 const G: f64 = 5.10;
 const TAN: f64 = 0.2;
@@ -71,20 +71,6 @@ fn scene(mu: f64, settle: f64, release: f64) -> String {
     )
 }
 
-/// Least-squares slope of `y(t)`.
-fn fit_slope(pts: &[(f64, f64)]) -> f64 {
-    let n = pts.len() as f64;
-    let (mt, my) = pts
-        .iter()
-        .fold((0.0, 0.0), |(a, b), p| (a + p.0 / n, b + p.1 / n));
-    let (mut num, mut den) = (0.0, 0.0);
-    for &(t, y) in pts {
-        num += (t - mt) * (y - my);
-        den += (t - mt) * (t - mt);
-    }
-    num / den
-}
-
 /// Run the experiment.
 pub fn run(ctx: &Ctx) -> Result<Outcome> {
     let (settle, release) = match ctx.tier {
@@ -120,7 +106,7 @@ pub fn run(ctx: &Ctx) -> Result<Outcome> {
         let penetrations = r.metrics.iter().map(|m| m.penetrations).max().unwrap_or(0);
         let second_half: Vec<(f64, f64)> =
             v.iter().copied().filter(|p| p.0 >= 0.5 * release).collect();
-        let a_fit = fit_slope(&second_half);
+        let a_fit = least_squares_slope(&second_half);
         let a = G * (th.sin() - mu * th.cos());
         if mu < TAN {
             out.checks.push(Check::rel(
