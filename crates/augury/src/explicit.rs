@@ -430,8 +430,20 @@ impl<const D: usize> ExplicitSystem<D> {
         Ok(iters)
     }
 
-    /// Advance by one step of central-difference Newmark (eq. 32).
-    pub fn step(&mut self) -> Result<(), AuguryError> {
+    /// Advance by one step of central-difference Newmark (eq. 32). Returns the number of augury
+    /// iterations the correction took (0 without augury contact).
+    pub fn step(&mut self) -> Result<usize, AuguryError> {
+        self.step_with(|_, _, _, _| {})
+    }
+
+    /// [`Self::step`] with prescribed motion: after the position update, `prescribe(body, t, x,
+    /// v)` may set the positions and velocities of the body's fixed vertices at the new time `t`
+    /// (they are not integrated; forces and the contact correction then see the prescribed
+    /// state, and fixed boundary vertices enter the correction with their prescribed velocity).
+    pub fn step_with(
+        &mut self,
+        mut prescribe: impl FnMut(usize, f64, &mut [SVector<f64, D>], &mut [SVector<f64, D>]),
+    ) -> Result<usize, AuguryError> {
         let dt = self.params.dt;
         if !self.started {
             self.mechanical()?;
@@ -451,9 +463,13 @@ impl<const D: usize> ExplicitSystem<D> {
         for (b, bd) in self.b.iter_mut().zip(&self.bdot) {
             *b += bd * (0.5 * dt);
         }
+        let t1 = self.time + dt;
+        for (k, b) in self.bodies.iter_mut().enumerate() {
+            prescribe(k, t1, &mut b.x, &mut b.v);
+        }
         // New accelerations: mechanical, then the contact correction.
         self.mechanical()?;
-        self.contact()?;
+        let iterations = self.contact()?;
         for b in &mut self.bodies {
             for k in 0..b.x.len() {
                 if !b.fixed[k] {
@@ -464,8 +480,8 @@ impl<const D: usize> ExplicitSystem<D> {
         for (b, bd) in self.b.iter_mut().zip(&self.bdot) {
             *b += bd * (0.5 * dt);
         }
-        self.time += dt;
-        Ok(())
+        self.time = t1;
+        Ok(iterations)
     }
 
     /// Total linear momentum.

@@ -18,6 +18,7 @@
 //! # Ok::<(), femp::SimError>(())
 //! ```
 
+mod augury;
 mod build;
 mod error;
 pub mod metrics;

@@ -73,13 +73,17 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             };
             let r = femp::run::run(s, &out, &opts)
                 .with_context(|| format!("running {}", scene.display()))?;
+            let work = if r.summary.method == "augury" {
+                format!("{} augury iterations", r.summary.friction_iterations)
+            } else {
+                format!("{} Newton iterations", r.summary.newton_iterations)
+            };
             eprintln!(
-                "{}: {} steps, t = {:.4} s, {:.1} s wall, {} Newton iterations, max penetrations {} -> {}",
+                "{}: {} steps, t = {:.4} s, {:.1} s wall, {work}, max penetrations {} -> {}",
                 r.summary.scene,
                 r.summary.steps,
                 r.summary.simulated_time,
                 r.summary.wall_s,
-                r.summary.newton_iterations,
                 r.summary.max_penetrations,
                 out.display()
             );
@@ -88,23 +92,27 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             let s = femp::scene::load(&scene)?;
             let dim = s.spec.dimension;
             let name = s.name.clone();
-            let (particles, vertices) = match dim {
-                2 => {
-                    let w = femp::World::<2>::build(s)?;
-                    (
-                        w.mpm.as_ref().map_or(0, |m| m.x.len()),
-                        w.fem.iter().map(|b| b.x.len()).sum::<usize>(),
-                    )
+            fn describe<const D: usize>(w: &femp::World<D>) -> String {
+                let particles = w.mpm.as_ref().map_or(0, |m| m.x.len());
+                let vertices = w.fem.iter().map(|b| b.x.len()).sum::<usize>();
+                let mut s = format!("{particles} particles, {vertices} FEM vertices");
+                if let Some(a) = &w.augury {
+                    s += &format!(
+                        "; augury: grid spacing {:.4e} m, {} boundary particles, Δt = {:.3e} s ({:.2} × the explicit stability estimate {:.3e} s)",
+                        a.grid_spacing,
+                        a.system.num_particles(),
+                        w.dt,
+                        w.dt / a.stable_dt,
+                        a.stable_dt
+                    );
                 }
-                _ => {
-                    let w = femp::World::<3>::build(s)?;
-                    (
-                        w.mpm.as_ref().map_or(0, |m| m.x.len()),
-                        w.fem.iter().map(|b| b.x.len()).sum::<usize>(),
-                    )
-                }
+                s
+            }
+            let what = match dim {
+                2 => describe(&femp::World::<2>::build(s)?),
+                _ => describe(&femp::World::<3>::build(s)?),
             };
-            println!("{name}: valid {dim}D scene, {particles} particles, {vertices} FEM vertices");
+            println!("{name}: valid {dim}D scene, {what}");
         }
     }
     Ok(())

@@ -161,6 +161,12 @@ impl<const D: usize> World<D> {
                 m.elastic_energy += body.elastic.energy(&body.x).unwrap_or(f64::INFINITY);
             }
         }
+        if let Some(aug) = &self.augury {
+            l += aug.spin();
+            let (n, d) = aug.contact_metrics(&self.fem);
+            m.penetrations = n;
+            m.min_distance = d;
+        }
         m.momentum = [p[0], p[1], p[2]];
         m.angular_momentum = [l[0], l[1], l[2]];
         // Barrier energy, minimum distance and penetrations, independent of the solver.

@@ -22,6 +22,12 @@ pub struct Summary {
     pub scene: String,
     /// 2 or 3.
     pub dimension: usize,
+    /// `bfemp` or `augury`.
+    pub method: String,
+    /// Augury scenes: background grid spacing (m), explicit stability estimate (s) and number
+    /// of boundary particles.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub augury: Option<AugurySummary>,
     /// `running` (while it runs), `completed`, `failed` or `interrupted`.
     pub status: String,
     /// Why it failed.
@@ -48,6 +54,17 @@ pub struct Summary {
     pub fem_vertices: usize,
     /// Where the wall-clock time went.
     pub timing: RunTiming,
+}
+
+/// What an augury run was set up with.
+#[derive(Clone, Debug, Default, Serialize)]
+pub struct AugurySummary {
+    /// Background grid spacing (m).
+    pub grid_spacing: f64,
+    /// Explicit stability estimate `min h_e / c_p` (s); Δt above it is likely to blow up.
+    pub stable_dt: f64,
+    /// Boundary vertices taking part in the contact correction.
+    pub boundary_particles: usize,
 }
 
 /// Where a run's wall-clock time went (seconds, summed over steps). The objective's parts

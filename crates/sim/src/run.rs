@@ -7,7 +7,7 @@ use std::time::Instant;
 use crate::error::SimError;
 use crate::metrics::Metrics;
 use crate::output::{Output, Summary};
-use crate::scene::{Method, Scene};
+use crate::scene::Scene;
 use crate::world::World;
 
 /// Options of a run.
@@ -36,13 +36,6 @@ pub struct RunResult {
 /// Run a scene, writing into `out_dir`. On failure the files written so far stay, the summary
 /// says why, and the error is returned.
 pub fn run(scene: Scene, out_dir: &Path, opts: &RunOptions) -> Result<RunResult, SimError> {
-    if scene.spec.method == Method::Augury {
-        return Err(SimError::Invalid {
-            field: "method".into(),
-            message: "`augury` is not available in this build of femp yet (issue 7); use `bfemp`"
-                .into(),
-        });
-    }
     match scene.spec.dimension {
         2 => run_d::<2>(scene, out_dir, opts),
         _ => run_d::<3>(scene, out_dir, opts),
@@ -79,6 +72,16 @@ pub fn run_with<const D: usize>(
         status: "running".into(),
         particles: world.mpm.as_ref().map_or(0, |m| m.x.len()),
         fem_vertices: world.fem.iter().map(|b| b.x.len()).sum(),
+        method: if world.augury.is_some() {
+            "augury".into()
+        } else {
+            "bfemp".into()
+        },
+        augury: world.augury.as_ref().map(|a| crate::output::AugurySummary {
+            grid_spacing: a.grid_spacing,
+            stable_dt: a.stable_dt,
+            boundary_particles: a.system.num_particles(),
+        }),
         ..Default::default()
     };
     // A summary from the start: a run killed outright still says `running` and what it is.
@@ -154,10 +157,14 @@ pub fn run_with<const D: usize>(
                     next_frame += frame_dt;
                 }
                 inspect(&world, &m);
-                let msg = format!(
-                    "t = {:.4} s, Newton {}",
-                    world.time, report.newton_iterations
-                );
+                let msg = if world.augury.is_some() {
+                    format!("t = {:.4} s", world.time)
+                } else {
+                    format!(
+                        "t = {:.4} s, Newton {}",
+                        world.time, report.newton_iterations
+                    )
+                };
                 if let Some(b) = &bar {
                     b.set_message(msg);
                     b.inc(1);

@@ -73,6 +73,9 @@ pub(crate) struct StepSetup<const D: usize> {
 impl<const D: usize> World<D> {
     /// Advance by one time step.
     pub fn step(&mut self) -> Result<StepReport, SimError> {
+        if self.augury.is_some() {
+            return self.step_augury();
+        }
         let dt = self.dt;
         let t1 = self.time + dt;
         let fail = |world: &World<D>, message: String| SimError::StepFailed {

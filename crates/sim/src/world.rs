@@ -205,6 +205,8 @@ pub struct World<const D: usize> {
     pub boundaries: Vec<LevelSet<D>>,
     /// The Newton solver (kept across steps: symbolic factorisations and buffers are reused).
     pub newton: Newton,
+    /// The explicit system of an augury scene (`None` for BFEMP).
+    pub augury: Option<crate::augury::AuguryState<D>>,
 }
 
 fn make_material(m: &MaterialSpec) -> Result<Material, SimError> {
@@ -550,8 +552,16 @@ impl<const D: usize> World<D> {
             pairs,
             boundaries,
             newton: Newton::new(),
+            augury: None,
         };
         world.check_overlaps()?;
+        let mut world = world;
+        if world.scene.spec.method == crate::scene::Method::Augury {
+            world.augury = Some(crate::augury::AuguryState::build(
+                &world.scene.spec,
+                &world.fem,
+            )?);
+        }
         Ok(world)
     }
 
@@ -677,7 +687,7 @@ impl<const D: usize> World<D> {
 }
 
 /// Distance from `p` to a boundary facet (an edge in 2D, a triangle in 3D).
-fn point_facet_distance<const D: usize>(
+pub(crate) fn point_facet_distance<const D: usize>(
     p: &SVector<f64, D>,
     f: &[u32; 3],
     x: &[SVector<f64, D>],

@@ -469,7 +469,8 @@ pub fn validate(s: &SceneSpec) -> Result<(), SimError> {
             ));
         }
     }
-    let needs_contact = (any_mpm && n_fem > 0) || n_fem > 1;
+    let needs_contact = s.method == Method::Bfemp && ((any_mpm && n_fem > 0) || n_fem > 1);
+    augury(s)?;
     match &s.contact {
         Some(c) => {
             positive("contact.dhat", c.dhat)?;
@@ -575,4 +576,82 @@ pub fn validate(s: &SceneSpec) -> Result<(), SimError> {
         ));
     }
     Ok(())
+}
+
+/// The method-specific sections: `augury` only with the augury method, `contact` only with BFEMP.
+fn augury(s: &SceneSpec) -> Result<(), SimError> {
+    match s.method {
+        Method::Bfemp => {
+            if s.augury.is_some() {
+                return Err(invalid(
+                    "augury",
+                    "settings of the `augury` method, but the scene's method is `bfemp`",
+                ));
+            }
+            Ok(())
+        }
+        Method::Augury => {
+            if s.contact.is_some() {
+                return Err(invalid(
+                    "contact",
+                    "barrier contact settings belong to `bfemp`; the augury method's contact settings are in `augury`",
+                ));
+            }
+            let Some(a) = &s.augury else {
+                return Ok(());
+            };
+            match (a.grid_spacing, a.grid_ratio) {
+                (Some(_), Some(_)) => {
+                    return Err(invalid(
+                        "augury",
+                        "give `grid_spacing` or `grid_ratio`, not both",
+                    ));
+                }
+                (Some(h), None) => positive("augury.grid_spacing", h)?,
+                (None, Some(r)) => positive("augury.grid_ratio", r)?,
+                (None, None) => {}
+            }
+            if let Some(t) = a.tau {
+                positive("augury.tau", t)?;
+            }
+            if a.iterations == 0 && a.model != AuguryModelSpec::Sticky {
+                return Err(invalid(
+                    "augury.iterations",
+                    "must be at least 1 (or use `\"model\": \"sticky\"`)",
+                ));
+            }
+            if !(a.friction >= 0.0 && a.friction.is_finite()) {
+                return Err(invalid(
+                    "augury.friction",
+                    format!("{} must be non-negative", a.friction),
+                ));
+            }
+            if a.friction > 0.0 && a.model != AuguryModelSpec::Friction {
+                return Err(invalid(
+                    "augury.friction",
+                    "a friction coefficient needs `\"model\": \"friction\"`",
+                ));
+            }
+            match (&a.penalty, a.contact) {
+                (Some(p), AuguryContactSpec::Penalty) => {
+                    positive("augury.penalty.stiffness", p.stiffness)?;
+                    positive("augury.penalty.band", p.band)?;
+                }
+                (None, AuguryContactSpec::Penalty) => {
+                    return Err(invalid(
+                        "augury.penalty",
+                        "`\"contact\": \"penalty\"` needs `penalty` (stiffness, band)",
+                    ));
+                }
+                (Some(_), _) => {
+                    return Err(invalid(
+                        "augury.penalty",
+                        "penalty settings, but `contact` is not `penalty`",
+                    ));
+                }
+                (None, _) => {}
+            }
+            Ok(())
+        }
+    }
 }

@@ -36,6 +36,109 @@ pub struct SceneSpec {
     /// Level-set boundaries acting on the MPM grid.
     #[serde(default)]
     pub boundaries: Vec<BoundarySpec>,
+    /// Settings of the `augury` method (only with `"method": "augury"`; defaults if absent).
+    #[serde(default)]
+    pub augury: Option<AugurySpec>,
+}
+
+/// Settings of the `augury` method: explicit central differences with APIC augury contact on a
+/// background grid (or the search-based penalty baseline).
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct AugurySpec {
+    /// Background grid spacing (m). Give this or `grid_ratio`, not both.
+    #[serde(default)]
+    pub grid_spacing: Option<f64>,
+    /// Background grid spacing as a multiple of the mean boundary edge length of the bodies
+    /// (default 2, the paper's choice).
+    #[serde(default)]
+    pub grid_ratio: Option<f64>,
+    /// B-spline kernel.
+    #[serde(default)]
+    pub kernel: KernelSpec,
+    /// `"apic"` (default) or `"pic"`.
+    #[serde(default)]
+    pub transfer: AuguryTransferSpec,
+    /// Look-ahead time τ (s); default Δt.
+    #[serde(default)]
+    pub tau: Option<f64>,
+    /// Augury iterations N (default 1, the paper's choice).
+    #[serde(default = "one_usize")]
+    pub iterations: usize,
+    /// What the iterations undo.
+    #[serde(default)]
+    pub model: AuguryModelSpec,
+    /// Coulomb coefficient μ for `"model": "friction"` (default 0: frictionless).
+    #[serde(default)]
+    pub friction: f64,
+    /// Which contact handling: augury (default), the penalty baseline, or none.
+    #[serde(default)]
+    pub contact: AuguryContactSpec,
+    /// Settings of the penalty baseline (required with `"contact": "penalty"`).
+    #[serde(default)]
+    pub penalty: Option<PenaltySpec>,
+}
+
+fn one_usize() -> usize {
+    1
+}
+
+/// Quadratic B-spline kernel of the background grid.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum KernelSpec {
+    /// The standard 3-node-per-axis kernel, `D_p = ¼h²I`.
+    #[default]
+    Quadratic,
+    /// The augury paper's 4-node variant (appendix B), `D_p = ½h²I`.
+    Quadratic4,
+}
+
+/// Transfer of the augury correction.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum AuguryTransferSpec {
+    /// APIC: conserves linear and angular momentum.
+    #[default]
+    Apic,
+    /// PIC (`B_p ≡ 0`): conserves linear momentum.
+    Pic,
+}
+
+/// The contact model of the augury iterations.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum AuguryModelSpec {
+    /// No iterations: bodies stick on contact.
+    Sticky,
+    /// Undo changes that pull particles away from their surface (eq. 38).
+    Separation,
+    /// Separation and Coulomb friction with `friction` (eqs. 42–46).
+    #[default]
+    Friction,
+}
+
+/// Contact handling of an augury scene.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum AuguryContactSpec {
+    /// APIC/PIC augury contact.
+    #[default]
+    Augury,
+    /// The search-based node-to-surface penalty baseline.
+    Penalty,
+    /// No contact: bodies pass through each other.
+    None,
+}
+
+/// The penalty baseline's parameters.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct PenaltySpec {
+    /// Force per unit penetration (N/m in 3D; N/m per unit thickness in 2D).
+    pub stiffness: f64,
+    /// Search band (m): vertices up to this far behind a facet are pushed out.
+    pub band: f64,
 }
 
 /// The simulation method.

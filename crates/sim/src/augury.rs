@@ -1,0 +1,367 @@
+//! The `augury` method: FEM bodies stepped with explicit central differences (femp-augury),
+//! touching only through APIC (or PIC) augury contact on a background B-spline grid — or through
+//! the search-based penalty baseline — with femp's scenes, prescribed motion, metrics and frames.
+//!
+//! The world's FEM bodies mirror the explicit system's state after every step, so output,
+//! metrics and the validation suite read one place for both methods.
+
+use femp_augury::explicit::{ExplicitBody, ExplicitParams, ExplicitSystem, PenaltyContact};
+use femp_augury::{AuguryContact, AuguryParams, ContactModel, Transfer, TransferKind};
+use femp_kernels::Kernel;
+use nalgebra::{SMatrix, SVector};
+
+use crate::error::{SimError, invalid};
+use crate::motion::angular_components;
+use crate::scene::{
+    AuguryContactSpec, AuguryModelSpec, AugurySpec, AuguryTransferSpec, BodySpec, KernelSpec,
+    SceneSpec,
+};
+use crate::step::StepReport;
+use crate::world::{FemBody, World, inside_elements, point_facet_distance};
+
+/// The explicit system behind an augury scene.
+pub struct AuguryState<const D: usize> {
+    /// Bodies (in the scene's order of FEM bodies), time stepping and contact.
+    pub system: ExplicitSystem<D>,
+    /// Background grid spacing (m).
+    pub grid_spacing: f64,
+    /// Stability estimate of the explicit step: `min h_e / c_p` over the bodies that move (s).
+    pub stable_dt: f64,
+    /// Whether the correction is APIC (the `B_p` term counts in the angular momentum).
+    pub apic: bool,
+    /// Ordered pairs (points of `.0`, elements of `.1`) checked for penetration.
+    pairs: Vec<(usize, usize)>,
+}
+
+fn lame(e: f64, nu: f64) -> (f64, f64) {
+    (
+        e / (2.0 * (1.0 + nu)),
+        e * nu / ((1.0 + nu) * (1.0 - 2.0 * nu)),
+    )
+}
+
+/// Mean length of the boundary edges of all bodies (the "mesh size" the grid ratio scales).
+fn mean_boundary_edge<const D: usize>(fem: &[FemBody<D>]) -> f64 {
+    let (mut sum, mut n) = (0.0, 0usize);
+    for b in fem {
+        for f in b.boundary.facets() {
+            for k in 0..D {
+                let (i, j) = (f[k], f[(k + 1) % D]);
+                if D == 2 && k == 1 {
+                    break; // an edge has one side
+                }
+                sum += (b.x[i] - b.x[j]).norm();
+                n += 1;
+            }
+        }
+    }
+    if n == 0 { 0.0 } else { sum / n as f64 }
+}
+
+impl<const D: usize> AuguryState<D> {
+    /// Build from the world's FEM bodies (already placed, with velocities and prescribed sets).
+    pub(crate) fn build(spec: &SceneSpec, fem: &[FemBody<D>]) -> Result<Self, SimError> {
+        let default = AugurySpec {
+            grid_spacing: None,
+            grid_ratio: None,
+            kernel: KernelSpec::Quadratic,
+            transfer: AuguryTransferSpec::Apic,
+            tau: None,
+            iterations: 1,
+            model: AuguryModelSpec::Friction,
+            friction: 0.0,
+            contact: AuguryContactSpec::Augury,
+            penalty: None,
+        };
+        let a = spec.augury.as_ref().unwrap_or(&default);
+        let dt = spec.time.dt;
+        let build_err = |e: femp_augury::AuguryError| invalid("augury", e.to_string());
+        let fem_specs: Vec<_> = spec
+            .bodies
+            .iter()
+            .filter_map(|b| match b {
+                BodySpec::Fem(f) => Some(f),
+                BodySpec::Mpm(_) => None,
+            })
+            .collect();
+        let mut bodies = Vec::with_capacity(fem.len());
+        let mut stable_dt = f64::INFINITY;
+        for (b, s) in fem.iter().zip(&fem_specs) {
+            let mut e = ExplicitBody::new(&b.name, &b.mesh, b.material, s.material.rho)
+                .map_err(|e| invalid(format!("bodies `{}`", b.name), e.to_string()))?;
+            e.x.clone_from(&b.x);
+            e.v.clone_from(&b.v);
+            e.fixed.clone_from(&b.fixed);
+            for (ids, motion) in &b.prescribed {
+                for &i in ids {
+                    e.v[i] = motion.velocity(0.0, &b.initial[i]);
+                }
+            }
+            if !b.fully_prescribed {
+                let (mu, lambda) = lame(s.material.youngs_modulus, s.material.nu);
+                let c = ((lambda + 2.0 * mu) / s.material.rho).sqrt();
+                stable_dt = stable_dt.min(e.min_altitude() / c);
+            }
+            bodies.push(e);
+        }
+        let h = match (a.grid_spacing, a.grid_ratio) {
+            (Some(h), _) => h,
+            (None, r) => {
+                let edge = mean_boundary_edge(fem);
+                if edge <= 0.0 {
+                    return Err(invalid("augury.grid_ratio", "the bodies have no boundary"));
+                }
+                r.unwrap_or(2.0) * edge
+            }
+        };
+        let kernel = match a.kernel {
+            KernelSpec::Quadratic => Kernel::Quadratic,
+            KernelSpec::Quadratic4 => Kernel::Quadratic4,
+        };
+        let kind = match a.transfer {
+            AuguryTransferSpec::Apic => TransferKind::Apic,
+            AuguryTransferSpec::Pic => TransferKind::Pic,
+        };
+        let gravity = spec
+            .gravity
+            .as_deref()
+            .map_or_else(SVector::zeros, SVector::from_column_slice);
+        let params = ExplicitParams { dt, gravity };
+        let (contact, penalty, apic) = match a.contact {
+            AuguryContactSpec::Augury => {
+                let transfer = Transfer::<D>::new(h, kernel, kind).map_err(build_err)?;
+                let model = match a.model {
+                    AuguryModelSpec::Sticky => ContactModel::Sticky,
+                    AuguryModelSpec::Separation => ContactModel::Separation,
+                    AuguryModelSpec::Friction => ContactModel::Friction(a.friction),
+                };
+                let c = AuguryContact::new(
+                    transfer,
+                    AuguryParams {
+                        tau: a.tau.unwrap_or(dt),
+                        iterations: a.iterations,
+                        model,
+                    },
+                )
+                .map_err(build_err)?;
+                (Some(c), None, kind == TransferKind::Apic)
+            }
+            AuguryContactSpec::Penalty => {
+                let p = a.penalty.as_ref().expect("validated: penalty settings");
+                let pc = PenaltyContact::new(p.stiffness, p.band).map_err(build_err)?;
+                (None, Some(pc), false)
+            }
+            AuguryContactSpec::None => (None, None, false),
+        };
+        let mut system = ExplicitSystem::new(bodies, params, contact);
+        system.penalty = penalty;
+        // Initial B_p = L D_p for the bodies' rigid initial velocity fields (appendix A).
+        if apic {
+            let d_p = system.contact.as_ref().map_or(0.0, |c| c.transfer().d_p());
+            let mut k = 0;
+            for (body, s) in system.bodies.iter().zip(&fem_specs) {
+                let w = angular_components(&s.angular_velocity, D);
+                let omega = nalgebra::Vector3::new(
+                    if D == 3 { w[0] } else { 0.0 },
+                    if D == 3 { w[1] } else { 0.0 },
+                    if D == 3 { w[2] } else { w[0] },
+                );
+                let l: SMatrix<f64, D, D> = ExplicitBody::<D>::rotation_gradient(omega);
+                for _ in &body.boundary {
+                    system.b[k] = l * d_p;
+                    k += 1;
+                }
+            }
+        }
+        let mut pairs = Vec::new();
+        for i in 0..fem.len() {
+            for j in 0..fem.len() {
+                if i != j && !(fem[i].fully_prescribed && fem[j].fully_prescribed) {
+                    pairs.push((i, j));
+                }
+            }
+        }
+        let state = Self {
+            system,
+            grid_spacing: h,
+            stable_dt,
+            apic,
+            pairs,
+        };
+        // Bodies may start touching (a block resting on a ramp) but not overlapping.
+        for &(i, j) in &state.pairs {
+            let (n, deepest) = state.penetrations(fem, i, j, true);
+            if n > 0 {
+                let (k, depth) = deepest.expect("a deepest point when n > 0");
+                let p = fem[i].x[fem[i].boundary.vertices()[k]];
+                return Err(SimError::Overlap {
+                    a: fem[i].name.clone(),
+                    b: fem[j].name.clone(),
+                    detail: format!(
+                        "{n} boundary vertex(es) of `{}` lie inside `{}`; the deepest, vertex {} at {:?}, is {depth:.3e} m inside",
+                        fem[i].name,
+                        fem[j].name,
+                        fem[i].boundary.vertices()[k],
+                        p.as_slice()
+                    ),
+                });
+            }
+        }
+        Ok(state)
+    }
+
+    /// Boundary vertices of body `i` strictly inside body `j` (farther than a round-off
+    /// tolerance from `j`'s boundary), and with `deepest`, the deepest one (slot in `i`'s
+    /// boundary vertices, depth).
+    fn penetrations(
+        &self,
+        fem: &[FemBody<D>],
+        i: usize,
+        j: usize,
+        deepest: bool,
+    ) -> (usize, Option<(usize, f64)>) {
+        let (a, b) = (&fem[i], &fem[j]);
+        let pts: Vec<SVector<f64, D>> = a.boundary.vertices().iter().map(|&v| a.x[v]).collect();
+        let inside = inside_elements(&pts, &b.mesh, &b.x);
+        if inside.is_empty() {
+            return (0, None);
+        }
+        let (lo, hi) = b.mesh.bounding_box();
+        let tol = 1e-9 * (hi - lo).norm();
+        let sub: Vec<SVector<f64, D>> = inside.iter().map(|&(k, _)| pts[k]).collect();
+        let mut c = femp_contact::broad_phase::Candidates::default();
+        femp_contact::broad_phase::candidates_within(&sub, &b.x, &b.facets, tol, &mut c);
+        let mut n = 0;
+        let mut worst: Option<(usize, f64)> = None;
+        for (s, &(k, _)) in inside.iter().enumerate() {
+            let near = c
+                .of(s)
+                .iter()
+                .any(|&f| point_facet_distance(&sub[s], &b.facets[f as usize], &b.x) <= tol);
+            if near {
+                continue;
+            }
+            n += 1;
+            if deepest {
+                let d = b
+                    .facets
+                    .iter()
+                    .map(|f| point_facet_distance(&sub[s], f, &b.x))
+                    .fold(f64::INFINITY, f64::min);
+                if worst.is_none_or(|w| d > w.1) {
+                    worst = Some((k, d));
+                }
+            }
+        }
+        (n, worst)
+    }
+
+    /// Penetrating boundary vertices over all pairs, and the smallest distance between a
+    /// boundary vertex and another body's boundary within one grid spacing (∞ if none).
+    pub(crate) fn contact_metrics(&self, fem: &[FemBody<D>]) -> (usize, f64) {
+        let mut n = 0;
+        let mut min_d = f64::INFINITY;
+        let mut c = femp_contact::broad_phase::Candidates::default();
+        for &(i, j) in &self.pairs {
+            n += self.penetrations(fem, i, j, false).0;
+            let (a, b) = (&fem[i], &fem[j]);
+            let pts: Vec<SVector<f64, D>> = a.boundary.vertices().iter().map(|&v| a.x[v]).collect();
+            femp_contact::broad_phase::candidates_within(
+                &pts,
+                &b.x,
+                &b.facets,
+                self.grid_spacing,
+                &mut c,
+            );
+            for (q, p) in pts.iter().enumerate() {
+                for &f in c.of(q) {
+                    min_d = min_d.min(point_facet_distance(p, &b.facets[f as usize], &b.x));
+                }
+            }
+        }
+        (n, min_d)
+    }
+
+    /// The APIC term `Σ m_p ε : B_pᵀ` of the boundary particles' angular momentum.
+    pub(crate) fn spin(&self) -> nalgebra::Vector3<f64> {
+        let mut l = nalgebra::Vector3::zeros();
+        if !self.apic {
+            return l;
+        }
+        let mut k = 0;
+        for b in &self.system.bodies {
+            for &v in &b.boundary {
+                l += femp_kernels::transfer::apic_spin(&self.system.b[k]) * b.mass[v];
+                k += 1;
+            }
+        }
+        l
+    }
+}
+
+impl<const D: usize> World<D> {
+    /// One explicit step of an augury scene.
+    pub(crate) fn step_augury(&mut self) -> Result<StepReport, SimError> {
+        let clock = std::time::Instant::now();
+        let (step, time) = (self.step, self.time);
+        let aug = self.augury.as_mut().expect("an augury world");
+        let fem = &self.fem;
+        let hint = |aug: &AuguryState<D>| {
+            if aug.system.params.dt > aug.stable_dt {
+                format!(
+                    " (Δt = {:.3e} s exceeds the explicit stability estimate {:.3e} s = smallest element altitude / wave speed)",
+                    aug.system.params.dt, aug.stable_dt
+                )
+            } else {
+                String::new()
+            }
+        };
+        let result = aug.system.step_with(|k, t, x, v| {
+            for (ids, motion) in &fem[k].prescribed {
+                let r = motion.at(t);
+                for &i in ids {
+                    x[i] = r.apply(&fem[k].initial[i]);
+                    v[i] = motion.velocity(t, &fem[k].initial[i]);
+                }
+            }
+        });
+        let iterations = result.map_err(|e| SimError::StepFailed {
+            step,
+            time,
+            message: format!("{e}{}", hint(aug)),
+        })?;
+        for b in &aug.system.bodies {
+            if let Some(k) =
+                b.v.iter()
+                    .zip(&b.x)
+                    .position(|(v, x)| !(v.iter().chain(x.iter()).all(|c| c.is_finite())))
+            {
+                return Err(SimError::StepFailed {
+                    step,
+                    time,
+                    message: format!(
+                        "blow-up: vertex {k} of `{}` has a non-finite position or velocity{}",
+                        b.name,
+                        hint(aug)
+                    ),
+                });
+            }
+        }
+        for (fb, eb) in self.fem.iter_mut().zip(&aug.system.bodies) {
+            fb.x.copy_from_slice(&eb.x);
+            fb.v.copy_from_slice(&eb.v);
+            fb.a.copy_from_slice(&eb.a);
+        }
+        self.time = aug.system.time;
+        self.step += 1;
+        let contact_terms = aug.system.penalty.as_ref().map_or(0, |p| p.active);
+        Ok(StepReport {
+            friction_iterations: iterations,
+            friction_converged: true,
+            contact_terms,
+            min_distance: f64::INFINITY,
+            transfers_s: clock.elapsed().as_secs_f64(),
+            ..Default::default()
+        })
+    }
+}

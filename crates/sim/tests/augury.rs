@@ -1,0 +1,308 @@
+//! `"method": "augury"` scenes through femp: the same physics as femp-augury's own reference
+//! scene to round-off, exact momentum in the metrics, prescribed motion, the penalty baseline,
+//! a blow-up that says why, and bad input named by field.
+
+use std::path::Path;
+
+use femp::run::{RunOptions, run};
+use femp::scene::{self, Scene};
+use femp::{SimError, World};
+use femp_augury::scenes::{BlocksContact, head_on_blocks};
+use femp_augury::{ContactModel, TransferKind};
+use serde_json::{Value, json};
+
+fn fixture() -> Value {
+    let p = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../fixtures/scenes/augury_blocks.json");
+    serde_json::from_str(&std::fs::read_to_string(p).unwrap()).unwrap()
+}
+
+fn parse(v: &Value) -> Result<Scene, SimError> {
+    scene::parse(
+        &serde_json::to_string(v).unwrap(),
+        "test.json",
+        Path::new(".").to_path_buf(),
+        "test",
+    )
+}
+
+fn quiet(max_steps: Option<usize>) -> RunOptions {
+    RunOptions {
+        progress: false,
+        max_steps,
+        no_frames: true,
+        interrupt: None,
+    }
+}
+
+/// Velocity of the centre of mass of FEM body `k` along x.
+fn com_vx(w: &World<2>, k: usize) -> f64 {
+    let b = &w.fem[k];
+    let m: f64 = b.mass.iter().sum();
+    b.v.iter()
+        .zip(&b.mass)
+        .map(|(v, mm)| v[0] * mm)
+        .sum::<f64>()
+        / m
+}
+
+/// The fixture scene run by `femp` matches `femp_augury::scenes::head_on_blocks` (the same
+/// blocks, grid, Δt and model built by hand) to round-off: the scene path adds nothing.
+#[test]
+fn scene_run_matches_the_library_reference_scene() {
+    for (model, name) in [
+        (ContactModel::Separation, "separation"),
+        (ContactModel::Sticky, "sticky"),
+    ] {
+        let reference = head_on_blocks(BlocksContact::Augury(model, TransferKind::Apic), 0.0)
+            .expect("reference run");
+        // The reference uses half the stability estimate as Δt.
+        let mut v = fixture();
+        v["augury"]["model"] = json!(name);
+        let probe = World::<2>::build(parse(&v).unwrap()).unwrap();
+        let dt = 0.5 * probe.augury.as_ref().unwrap().stable_dt;
+        v["time"]["dt"] = json!(dt);
+        v["time"]["duration"] = json!(dt * reference.steps as f64);
+        let dir = tempfile::tempdir().unwrap();
+        let mut last = None;
+        let r = femp::run::run_with::<2>(parse(&v).unwrap(), dir.path(), &quiet(None), |w, _| {
+            last = Some(com_vx(w, 1) - com_vx(w, 0))
+        })
+        .unwrap();
+        assert_eq!(r.summary.steps, reference.steps, "{name}");
+        let sep = last.unwrap();
+        assert!(
+            (sep - reference.separation_speed).abs() <= 1e-12,
+            "{name}: femp {sep} vs library {}",
+            reference.separation_speed
+        );
+    }
+}
+
+/// Linear and angular momentum (with the APIC `B_p` term) in metrics.csv stay at their initial
+/// values to round-off through the collision; the blocks do not interpenetrate.
+#[test]
+fn metrics_show_exact_momentum_through_the_collision() {
+    let mut v = fixture();
+    // Off-centre impact: angular momentum is non-zero and changes hands.
+    v["bodies"][1]["mesh"]["rectangle"]["min"] = json!([0.5, 0.3]);
+    v["bodies"][1]["mesh"]["rectangle"]["max"] = json!([1.5, 1.3]);
+    let dir = tempfile::tempdir().unwrap();
+    let r = run(parse(&v).unwrap(), dir.path(), &quiet(None)).unwrap();
+    assert_eq!(r.summary.method, "augury");
+    let m0 = &r.metrics[0];
+    // Scales: Σ m |v| = 2 kg·m/s; positions within 2 m of the origin.
+    assert!(
+        m0.angular_momentum[2].abs() > 0.1,
+        "{:?}",
+        m0.angular_momentum
+    );
+    let mut touched = false;
+    for m in &r.metrics {
+        for a in 0..2 {
+            assert!(
+                (m.momentum[a] - m0.momentum[a]).abs() <= 1e-12 * 2.0,
+                "step {}: p = {:?}",
+                m.step,
+                m.momentum
+            );
+        }
+        assert!(
+            (m.angular_momentum[2] - m0.angular_momentum[2]).abs() <= 1e-12 * 4.0,
+            "step {}: L = {} vs {}",
+            m.step,
+            m.angular_momentum[2],
+            m0.angular_momentum[2]
+        );
+        // Augury contact acts across about one grid spacing (0.25 m here).
+        touched |= m.min_distance < 0.25 && m.kinetic_energy < 0.9 * m0.kinetic_energy;
+        assert_eq!(m.penetrations, 0, "step {}", m.step);
+    }
+    assert!(
+        touched,
+        "the blocks never came close: the test saw no collision"
+    );
+    // The CSV holds the same rows.
+    let csv = std::fs::read_to_string(dir.path().join("metrics.csv")).unwrap();
+    assert_eq!(csv.lines().count(), r.metrics.len() + 1);
+}
+
+/// A fully prescribed plate moving at 0.5 m/s pushes a free block: the plate follows its script
+/// exactly and the block ends up moving with it.
+#[test]
+fn a_prescribed_plate_pushes_a_block() {
+    let v = json!({
+        "dimension": 2, "method": "augury",
+        "time": { "dt": 1e-3, "duration": 1.2 },
+        "augury": { "grid_spacing": 0.25, "model": "separation" },
+        "bodies": [
+            { "kind": "fem", "name": "plate",
+              "mesh": { "rectangle": { "min": [-1.0, 0.0], "max": [-0.75, 1.0], "cells": [2, 8] } },
+              "material": { "E": 1e3, "nu": 0.3, "rho": 1.0 },
+              "prescribed": [ { "vertices": "all",
+                                "motion": [ { "until": 10.0, "velocity": [0.5, 0.0] } ] } ] },
+            { "kind": "fem", "name": "block",
+              "mesh": { "rectangle": { "min": [-0.5, 0.0], "max": [0.5, 1.0], "cells": [8, 8] } },
+              "material": { "E": 1e3, "nu": 0.3, "rho": 1.0 } }
+        ]
+    });
+    let dir = tempfile::tempdir().unwrap();
+    let mut world_plate_x = Vec::new();
+    let mut block_v = 0.0;
+    let r = femp::run::run_with::<2>(parse(&v).unwrap(), dir.path(), &quiet(None), |w, _| {
+        world_plate_x.push((w.time, w.fem[0].x[0][0]));
+        block_v = com_vx(w, 1);
+    })
+    .unwrap();
+    assert_eq!(r.summary.status, "completed");
+    for (t, x) in &world_plate_x {
+        assert!(
+            (x - (-1.0 + 0.5 * t)).abs() < 1e-12,
+            "plate at {x} at t = {t}"
+        );
+    }
+    // Before contact the block is at rest; after 1.2 s the plate has travelled 0.6 m, closing
+    // the 0.25 m gap, and pushes the block along.
+    assert!(
+        block_v > 0.3 && block_v < 0.7,
+        "block moves at {block_v} m/s (plate 0.5 m/s)"
+    );
+}
+
+/// The search-based penalty baseline runs from a scene too: the blocks bounce apart, linear
+/// momentum is conserved, and no vertex ends up inside the other block.
+#[test]
+fn the_penalty_baseline_runs_from_a_scene() {
+    let mut v = fixture();
+    v["augury"] = json!({ "contact": "penalty", "penalty": { "stiffness": 2e3, "band": 0.0625 } });
+    let dir = tempfile::tempdir().unwrap();
+    let mut last = 0.0;
+    let r = femp::run::run_with::<2>(parse(&v).unwrap(), dir.path(), &quiet(None), |w, _| {
+        last = com_vx(w, 1) - com_vx(w, 0);
+    })
+    .unwrap();
+    assert!(last > 0.5, "separation speed {last}");
+    let m_end = r.metrics.last().unwrap();
+    assert!(m_end.momentum[0].abs() < 1e-12, "{:?}", m_end.momentum);
+    assert_eq!(m_end.penetrations, 0);
+    assert!(r.metrics.iter().any(|m| m.contact_terms > 0));
+}
+
+/// A time step far above the stability estimate blows up; the run stops with an error that
+/// names the estimate, keeps the metrics written so far and says `failed` in the summary.
+#[test]
+fn an_unstable_time_step_fails_with_the_stability_estimate() {
+    let mut v = fixture();
+    v["time"]["dt"] = json!(0.03);
+    v["time"]["duration"] = json!(30.0);
+    let dir = tempfile::tempdir().unwrap();
+    let err = run(parse(&v).unwrap(), dir.path(), &quiet(None)).unwrap_err();
+    let msg = err.to_string();
+    assert!(
+        msg.contains("exceeds the explicit stability estimate"),
+        "{msg}"
+    );
+    let summary: Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.path().join("summary.json")).unwrap())
+            .unwrap();
+    assert_eq!(summary["status"], "failed");
+    let rows = std::fs::read_to_string(dir.path().join("metrics.csv"))
+        .unwrap()
+        .lines()
+        .count();
+    assert!(
+        rows >= 2,
+        "metrics up to the failure are kept ({rows} lines)"
+    );
+}
+
+fn error_of(v: &Value) -> String {
+    match parse(v) {
+        Err(e) => e.to_string(),
+        Ok(s) => World::<2>::build(s)
+            .err()
+            .expect("the scene must be rejected")
+            .to_string(),
+    }
+}
+
+#[test]
+fn bad_augury_input_is_named() {
+    let cases: Vec<(Value, Vec<&str>)> = vec![
+        {
+            let mut v = fixture();
+            v["contact"] = json!({ "dhat": 0.01, "kappa": 1.0 });
+            (v, vec!["contact", "augury"])
+        },
+        {
+            let mut v = fixture();
+            v["method"] = json!("bfemp");
+            v["contact"] = json!({ "dhat": 0.01, "kappa": 1.0 });
+            (v, vec!["augury", "bfemp"])
+        },
+        {
+            let mut v = fixture();
+            v["augury"]["grid_ratio"] = json!(2.0);
+            (v, vec!["augury", "not both"])
+        },
+        {
+            let mut v = fixture();
+            v["augury"]["tau"] = json!(-1.0);
+            (v, vec!["augury.tau"])
+        },
+        {
+            let mut v = fixture();
+            v["augury"]["contact"] = json!("penalty");
+            (v, vec!["augury.penalty", "stiffness"])
+        },
+        {
+            let mut v = fixture();
+            v["augury"]["friction"] = json!(0.3);
+            (v, vec!["augury.friction", "friction"])
+        },
+        {
+            let mut v = fixture();
+            v["augury"]["kernel"] = json!("cubic");
+            (v, vec!["augury.kernel", "cubic"])
+        },
+        {
+            let mut v = fixture();
+            v["augury"]["spacing"] = json!(1.0);
+            (v, vec!["augury.spacing", "unknown field"])
+        },
+        {
+            // Overlapping blocks: named, with the deepest vertex.
+            let mut v = fixture();
+            v["bodies"][1]["mesh"]["rectangle"]["min"] = json!([-0.7, 0.0]);
+            v["bodies"][1]["mesh"]["rectangle"]["max"] = json!([0.3, 1.0]);
+            (v, vec!["`a`", "`b`", "start overlapping", "inside"])
+        },
+        {
+            let mut v = fixture();
+            v["mpm"] = json!({ "grid_spacing": 0.1 });
+            v["bodies"][0] = json!({ "kind": "mpm", "name": "a",
+                "shape": { "box": { "min": [-1.5, 0.0], "max": [-0.5, 1.0] } },
+                "material": { "E": 1e3, "nu": 0.3, "rho": 1.0 } });
+            (v, vec!["method", "MPM"])
+        },
+    ];
+    for (v, needles) in cases {
+        let msg = error_of(&v);
+        for n in needles {
+            assert!(msg.contains(n), "message `{msg}` lacks `{n}`");
+        }
+    }
+}
+
+/// Bodies that start touching (a block resting on a ramp) are accepted and not counted as
+/// penetrating.
+#[test]
+fn touching_bodies_are_accepted() {
+    let mut v = fixture();
+    v["bodies"][1]["mesh"]["rectangle"]["min"] = json!([-0.5, 0.0]);
+    v["bodies"][1]["mesh"]["rectangle"]["max"] = json!([0.5, 1.0]);
+    let s = parse(&v).unwrap();
+    let w = World::<2>::build(s).unwrap();
+    let m = w.measure();
+    assert_eq!(m.penetrations, 0);
+    assert!(m.min_distance < 1e-12, "{}", m.min_distance);
+}
