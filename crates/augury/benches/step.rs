@@ -60,7 +60,18 @@ fn plates<const D: usize>(boundary_nodes: usize) -> (Vec<ExplicitBody<D>>, f64) 
 fn system<const D: usize>(n: usize, augury: bool) -> (ExplicitSystem<D>, usize) {
     let (bodies, h) = plates::<D>(n);
     let nb: usize = bodies.iter().map(|b| b.boundary.len()).sum();
-    let dt = 1e-6;
+    // A quarter of the stability estimate, so that round-off cannot grow over many iterations.
+    let (mu, lambda) = (E / 2.6, E * 0.3 / (1.3 * 0.4));
+    let dt = ExplicitSystem::new(
+        bodies,
+        ExplicitParams {
+            dt: 1.0,
+            gravity: SVector::zeros(),
+        },
+        None,
+    )
+    .stable_dt(&[(mu, lambda, 1000.0); 2], 0.25);
+    let (bodies, _) = plates::<D>(n);
     let params = ExplicitParams {
         dt,
         gravity: SVector::zeros(),

@@ -8,7 +8,7 @@ use nalgebra::{SMatrix, SVector, Vector2, Vector3};
 
 use crate::error::SimError;
 use crate::motion::rotation;
-use crate::scene::{MeshSpec, ShapeSpec, TransformSpec};
+use crate::scene::{MeshSpec, Sampling, ShapeSpec, TransformSpec};
 
 /// Particles sampled in a shape: positions and volumes.
 #[derive(Clone, Debug, Default)]
@@ -77,24 +77,37 @@ pub fn sample_shape<const D: usize>(
                 out.volume.push(vol);
             }
         }
-        ShapeSpec::Disk { center, radius } => {
+        ShapeSpec::Disk {
+            center,
+            radius,
+            sampling,
+        } => {
             let c = v::<D>(center);
             let r = *radius;
-            lattice(&mut out, c.add_scalar(-r), c.add_scalar(r), s, |p| {
-                (p - c).norm() <= r
-            });
+            if *sampling == Sampling::Polar {
+                polar(&mut out, c, 0.0, r, s);
+            } else {
+                lattice(&mut out, c.add_scalar(-r), c.add_scalar(r), s, |p| {
+                    (p - c).norm() <= r
+                });
+            }
         }
         ShapeSpec::Ring {
             center,
             r_in,
             r_out,
+            sampling,
         } => {
             let c = v::<D>(center);
             let (a, b) = (*r_in, *r_out);
-            lattice(&mut out, c.add_scalar(-b), c.add_scalar(b), s, |p| {
-                let d = (p - c).norm();
-                d >= a && d <= b
-            });
+            if *sampling == Sampling::Polar {
+                polar(&mut out, c, a, b, s);
+            } else {
+                lattice(&mut out, c.add_scalar(-b), c.add_scalar(b), s, |p| {
+                    let d = (p - c).norm();
+                    d >= a && d <= b
+                });
+            }
         }
         ShapeSpec::SemicircularRing {
             center,
@@ -131,6 +144,29 @@ pub fn sample_shape<const D: usize>(
         });
     }
     Ok(out)
+}
+
+/// 2D: concentric circles between radii `r0` and `r1` about `c`, `n = round((r1 − r0)/s)` rings
+/// at the mid-radii, each with `round(2πr/Δr)` equally spaced particles sharing its area; the
+/// areas add up to the annulus exactly.
+fn polar<const D: usize>(out: &mut Samples<D>, c: SVector<f64, D>, r0: f64, r1: f64, s: f64) {
+    let n = (((r1 - r0) / s).round() as usize).max(1);
+    let dr = (r1 - r0) / n as f64;
+    for j in 0..n {
+        let r = r0 + (j as f64 + 0.5) * dr;
+        let count = ((std::f64::consts::TAU * r / dr).round() as usize).max(1);
+        let area = std::f64::consts::TAU * r * dr / count as f64;
+        // Alternate rings are offset by half a spacing.
+        let phase = if j % 2 == 0 { 0.0 } else { 0.5 };
+        for k in 0..count {
+            let t = std::f64::consts::TAU * (k as f64 + phase) / count as f64;
+            let mut p = c;
+            p[0] += r * t.sin();
+            p[1] -= r * t.cos();
+            out.x.push(p);
+            out.volume.push(area);
+        }
+    }
 }
 
 /// Points `(i + ½) s` inside `[lo, hi]` for which `inside` holds, each with volume `s^D`.

@@ -214,3 +214,78 @@ impl<const D: usize> World<D> {
         m
     }
 }
+
+/// The barrier (normal contact) force of one contact pair at the current positions.
+#[derive(Clone, Debug, PartialEq)]
+pub struct PairForce<const D: usize> {
+    /// The bodies: points of `.0` against the boundary of `.1`.
+    pub names: (String, String),
+    /// Force on the points' body, `−∂B/∂x_points` summed (N in 3D, N/m in 2D); the FEM body
+    /// `names.1` feels the opposite.
+    pub on_points: SVector<f64, D>,
+    /// Active barrier terms.
+    pub terms: usize,
+    /// Per active term: the point's index within the pair's points (an MPM body's particles in
+    /// order, from its first particle; or the points' FEM body's boundary vertices in
+    /// `Boundary::vertices` order) and the force on it.
+    pub per_point: Vec<(u32, SVector<f64, D>)>,
+}
+
+impl<const D: usize> World<D> {
+    /// The barrier force of every contact pair at the current state (a reaction force, e.g. on a
+    /// prescribed plate): the gradient of the pair's barrier energy with respect to its points,
+    /// summed. Friction forces are not included.
+    pub fn contact_forces(&self) -> Vec<PairForce<D>> {
+        let mut out = Vec::with_capacity(self.pairs.len());
+        let mut derivs = Vec::new();
+        for pair in &self.pairs {
+            let target = &self.fem[pair.facets_of];
+            let (pts, w): (Vec<SVector<f64, D>>, Vec<f64>) = match &pair.points {
+                Points::Mpm { range } => {
+                    let mpm = self.mpm.as_ref().expect("MPM pair");
+                    (
+                        mpm.x[range.0..range.1].to_vec(),
+                        mpm.weight[range.0..range.1].to_vec(),
+                    )
+                }
+                Points::Fem { body } => {
+                    let b = &self.fem[*body];
+                    (
+                        b.boundary.vertices().iter().map(|&v| b.x[v]).collect(),
+                        b.vertex_weight.clone(),
+                    )
+                }
+            };
+            let mut c = femp_contact::broad_phase::Candidates::default();
+            femp_contact::broad_phase::candidates_within(
+                &pts,
+                &target.x,
+                &target.facets,
+                pair.potential.barrier.dhat,
+                &mut c,
+            );
+            let mut terms = Vec::new();
+            let mut f = SVector::<f64, D>::zeros();
+            let mut per_point = Vec::new();
+            if pair
+                .potential
+                .collect_terms(&pts, &w, &target.x, &c, &mut terms)
+                .is_ok()
+            {
+                pair.potential
+                    .derivatives(&terms, &pts, &target.x, &mut derivs);
+                for d in &derivs {
+                    f -= d.grad[0];
+                    per_point.push((d.particle, -d.grad[0]));
+                }
+            }
+            out.push(PairForce {
+                names: pair.names.clone(),
+                on_points: f,
+                terms: terms.len(),
+                per_point,
+            });
+        }
+        out
+    }
+}

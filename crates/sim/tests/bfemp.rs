@@ -65,6 +65,42 @@ fn block_falls_on_plate_and_rests_at_large_time_steps() {
     }
 }
 
+/// `World::contact_forces` is the reaction force: once the block rests on the plate, the
+/// barrier force on its particles carries its weight.
+#[test]
+fn contact_force_carries_the_weight_at_rest() {
+    let s = scene::parse(
+        &block_on_plate(1e-2, 1.5),
+        "test.json",
+        Path::new(".").to_path_buf(),
+        "test",
+    )
+    .unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    let mut last = None;
+    femp::run::run_with::<2>(
+        s,
+        dir.path(),
+        &RunOptions {
+            no_frames: true,
+            ..Default::default()
+        },
+        |w, _| last = Some(w.contact_forces()),
+    )
+    .unwrap();
+    let forces = last.unwrap();
+    assert_eq!(forces.len(), 1);
+    let f = &forces[0];
+    assert_eq!(f.names, ("block".to_string(), "plate".to_string()));
+    let weight = 0.4 * 0.2 * 1000.0 * 9.81;
+    assert!(
+        (f.on_points[1] - weight).abs() < 0.02 * weight && f.on_points[0].abs() < 0.02 * weight,
+        "contact force {:?} vs weight {weight} N/m ({} terms)",
+        f.on_points,
+        f.terms
+    );
+}
+
 /// A free MPM disk and a free FEM disk collide head-on without gravity: linear momentum is
 /// conserved through the contact to the solver tolerance (the barrier is translation
 /// invariant and the transfers conserve momentum), and they bounce apart.

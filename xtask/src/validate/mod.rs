@@ -11,6 +11,7 @@
 
 mod augury;
 mod charts;
+mod hertz;
 mod refinement;
 mod report;
 mod rings;
@@ -184,10 +185,20 @@ impl Ctx {
         &self,
         label: &str,
         json: &str,
-        mut probe: impl FnMut(&femp::World<2>) -> T,
+        probe: impl FnMut(&femp::World<2>) -> T,
+    ) -> Result<(RunResult, Vec<T>)> {
+        self.run_scene_probe::<2, T>(label, json, probe)
+    }
+
+    /// Run a `D`-dimensional scene, recording `probe(world)` after every step.
+    pub fn run_scene_probe<const D: usize, T>(
+        &self,
+        label: &str,
+        json: &str,
+        mut probe: impl FnMut(&femp::World<D>) -> T,
     ) -> Result<(RunResult, Vec<T>)> {
         let scene = femp::scene::parse(json, label, self.root.join("fixtures/scenes"), label)?;
-        anyhow::ensure!(scene.spec.dimension == 2, "{label}: not a 2D scene");
+        anyhow::ensure!(scene.spec.dimension == D, "{label}: not a {D}D scene");
         let bar = self.bar(label, &scene);
         let out = self.dir.join(label);
         let opts = RunOptions {
@@ -195,7 +206,7 @@ impl Ctx {
             ..Default::default()
         };
         let mut probes = Vec::new();
-        let r = run_with::<2>(scene, &out, &opts, |w, _: &Metrics| {
+        let r = run_with::<D>(scene, &out, &opts, |w, _: &Metrics| {
             probes.push(probe(w));
             bar.inc(1);
         });
@@ -253,7 +264,7 @@ const EXPERIMENTS: &[Experiment] = &[
         name: "hertz",
         section: "BFEMP 6.3",
         title: "Brazilian disk: force vs contact radius against 2D Hertz",
-        run: None,
+        run: Some(hertz::run),
     },
     Experiment {
         name: "slope",

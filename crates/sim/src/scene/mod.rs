@@ -301,14 +301,25 @@ pub fn validate(s: &SceneSpec) -> Result<(), SimError> {
                             transform(&format!("{sf}.transform"), t, d)?;
                         }
                     }
-                    ShapeSpec::Disk { center, radius } => {
+                    ShapeSpec::Disk {
+                        center,
+                        radius,
+                        sampling,
+                    } => {
                         vec_len(&format!("{sf}.center"), center, d)?;
                         positive(&format!("{sf}.radius"), *radius)?;
+                        if *sampling == Sampling::Polar && d != 2 {
+                            return Err(invalid(
+                                format!("{sf}.sampling"),
+                                "`polar` sampling is 2D",
+                            ));
+                        }
                     }
                     ShapeSpec::Ring {
                         center,
                         r_in,
                         r_out,
+                        ..
                     }
                     | ShapeSpec::SemicircularRing {
                         center,

@@ -416,6 +416,9 @@ pub enum ShapeSpec {
         center: Vec<f64>,
         /// Radius.
         radius: f64,
+        /// How particles are placed (2D `polar` gives a smooth circular boundary).
+        #[serde(default)]
+        sampling: Sampling,
     },
     /// Annulus (2D).
     Ring {
@@ -425,6 +428,9 @@ pub enum ShapeSpec {
         r_in: f64,
         /// Outer radius.
         r_out: f64,
+        /// How particles are placed.
+        #[serde(default)]
+        sampling: Sampling,
     },
     /// Upper half annulus (2D).
     SemicircularRing {
@@ -440,6 +446,19 @@ pub enum ShapeSpec {
         /// Gmsh file.
         file: String,
     },
+}
+
+/// Particle placement in round shapes.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Sampling {
+    /// The regular sub-grid of the background grid (`particles_per_cell`): the boundary is a
+    /// staircase at the particle spacing.
+    #[default]
+    Lattice,
+    /// Concentric circles at the same spacing, each with equally spaced particles (2D): the
+    /// boundary is a circle — for contact measurements such as the Hertz test.
+    Polar,
 }
 
 /// A FEM mesh.
