@@ -104,12 +104,50 @@ fn bounds(series: &[Series]) -> (f64, f64, f64, f64) {
     (x0, x1, y0 - pad, y1 + pad)
 }
 
-fn draw<DB: DrawingBackend>(root: DrawingArea<DB, Shift>, chart: &Chart) -> Result<()>
+/// How a chart is drawn beyond its data.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct Style {
+    /// Logarithmic x axis (data must be positive).
+    pub log_x: bool,
+    /// Logarithmic y axis.
+    pub log_y: bool,
+    /// Mark every data point (scatter-like), besides the line.
+    pub markers: bool,
+    /// Markers only, no lines (categorical scatter plots such as stability maps).
+    pub no_lines: bool,
+}
+
+fn draw<DB: DrawingBackend>(root: DrawingArea<DB, Shift>, chart: &Chart, st: Style) -> Result<()>
 where
     DB::ErrorType: 'static,
 {
     root.fill(&WHITE).map_err(|e| anyhow::anyhow!("{e:?}"))?;
-    let (x0, x1, y0, y1) = bounds(&chart.series);
+    // Log axes: plot log10 of the data and label the ticks with the values.
+    let tx = |v: f64| if st.log_x { v.log10() } else { v };
+    let ty = |v: f64| if st.log_y { v.log10() } else { v };
+    let owned: Vec<Series> = chart
+        .series
+        .iter()
+        .map(|s| Series {
+            label: s.label.clone(),
+            points: s.points.iter().map(|&(x, y)| (tx(x), ty(y))).collect(),
+            colour: s.colour,
+            dashed: s.dashed,
+        })
+        .collect();
+    let chart = &Chart {
+        stem: chart.stem.clone(),
+        title: chart.title.clone(),
+        x_label: chart.x_label.clone(),
+        y_label: chart.y_label.clone(),
+        series: owned,
+    };
+    let (mut x0, mut x1, y0, y1) = bounds(&chart.series);
+    if st.markers {
+        let pad = 0.04 * (x1 - x0);
+        x0 -= pad;
+        x1 += pad;
+    }
     let mut c = ChartBuilder::on(&root)
         .caption(&chart.title, ("sans-serif", 22))
         .margin(12)
@@ -121,8 +159,20 @@ where
         .x_desc(&chart.x_label)
         .y_desc(&chart.y_label)
         .label_style(("sans-serif", 14))
-        .y_label_formatter(&|v| axis_label(*v, y1 - y0))
-        .x_label_formatter(&|v| axis_label(*v, x1 - x0))
+        .y_label_formatter(&|v| {
+            if st.log_y {
+                significant(10f64.powf(*v))
+            } else {
+                axis_label(*v, y1 - y0)
+            }
+        })
+        .x_label_formatter(&|v| {
+            if st.log_x {
+                significant(10f64.powf(*v))
+            } else {
+                axis_label(*v, x1 - x0)
+            }
+        })
         .draw()
         .map_err(|e| anyhow::anyhow!("{e:?}"))?;
     for s in &chart.series {
@@ -134,6 +184,18 @@ where
             .copied()
             .filter(|p| p.0.is_finite() && p.1.is_finite())
             .collect();
+        if st.markers {
+            c.draw_series(pts.iter().map(|&p| Circle::new(p, 4, colour.filled())))
+                .map_err(|e| anyhow::anyhow!("{e:?}"))?;
+        }
+        if st.no_lines {
+            let anno = c
+                .draw_series(std::iter::empty::<Circle<(f64, f64), i32>>())
+                .map_err(|e| anyhow::anyhow!("{e:?}"))?;
+            anno.label(&s.label)
+                .legend(move |(x, y)| Circle::new((x + 10, y), 5, colour.filled()));
+            continue;
+        }
         let anno = if s.dashed {
             c.draw_series(DashedLineSeries::new(pts, 8, 5, style))
                 .map_err(|e| anyhow::anyhow!("{e:?}"))?
@@ -156,6 +218,21 @@ where
     Ok(())
 }
 
+/// A positive value with at most three significant digits (log-axis ticks).
+fn significant(v: f64) -> String {
+    if (1e-3..1e4).contains(&v) {
+        let digits = (2 - v.log10().floor() as i32).max(0) as usize;
+        let s = format!("{v:.digits$}");
+        if s.contains('.') {
+            s.trim_end_matches('0').trim_end_matches('.').to_string()
+        } else {
+            s
+        }
+    } else {
+        format!("{v:.2e}")
+    }
+}
+
 /// A tick label: `0` for values at round-off of the axis range, plain decimals for moderate
 /// magnitudes, scientific otherwise.
 fn axis_label(v: f64, range: f64) -> String {
@@ -172,6 +249,11 @@ fn axis_label(v: f64, range: f64) -> String {
 
 /// Write `dir/<stem>.png` and `dir/<stem>.svg`; returns the PNG path.
 pub fn write(dir: &Path, chart: &Chart) -> Result<PathBuf> {
+    write_styled(dir, chart, Style::default())
+}
+
+/// [`write`] with log axes and/or point markers.
+pub fn write_styled(dir: &Path, chart: &Chart, style: Style) -> Result<PathBuf> {
     register_font();
     std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
     let png = dir.join(format!("{}.png", chart.stem));
@@ -179,9 +261,14 @@ pub fn write(dir: &Path, chart: &Chart) -> Result<PathBuf> {
     draw(
         BitMapBackend::new(&png, (800, 500)).into_drawing_area(),
         chart,
+        style,
     )
     .with_context(|| format!("drawing {}", png.display()))?;
-    draw(SVGBackend::new(&svg, (800, 500)).into_drawing_area(), chart)
-        .with_context(|| format!("drawing {}", svg.display()))?;
+    draw(
+        SVGBackend::new(&svg, (800, 500)).into_drawing_area(),
+        chart,
+        style,
+    )
+    .with_context(|| format!("drawing {}", svg.display()))?;
     Ok(png)
 }

@@ -11,12 +11,14 @@
 
 mod augury;
 mod charts;
+mod compare;
 mod hertz;
 mod refinement;
 mod report;
 mod rings;
 mod sine;
 mod slope;
+mod stability;
 
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -307,6 +309,18 @@ const EXPERIMENTS: &[Experiment] = &[
         section: "augury 3.3",
         title: "Block sliding down a 30° ramp",
         run: Some(augury::ramp_experiment),
+    },
+    Experiment {
+        name: "compare",
+        section: "both papers",
+        title: "Speed vs accuracy: block sliding down a ramp, BFEMP / augury / penalty",
+        run: Some(compare::run),
+    },
+    Experiment {
+        name: "stability",
+        section: "both papers",
+        title: "Stability maps: time step against impact speed",
+        run: Some(stability::run),
     },
 ];
 
