@@ -95,7 +95,7 @@ fn com_x(masses: &[f64], xs: impl Iterator<Item = f64>) -> f64 {
 pub fn run(ctx: &Ctx) -> Result<Outcome> {
     let mut out = Outcome::default();
     let (hs, bfemp_dts, fractions): (&[f64], &[f64], &[f64]) = match ctx.tier {
-        Tier::Quick => (&[0.25, 0.125], &[1e-2, 2.5e-3], &[0.5, 0.1]),
+        Tier::Quick => (&[0.25, 0.125], &[1e-2, 2.5e-3], &[0.5, 0.2]),
         Tier::Full => (
             &[0.25, 0.125, 0.0625],
             &[1e-2, 2.5e-3, 1e-3],

@@ -105,13 +105,13 @@ fn figures(r: &RunResult) -> Figures {
 /// Run the experiment.
 pub fn run(ctx: &Ctx) -> Result<Outcome> {
     let (res, duration) = match ctx.tier {
-        // Coarse: 5× fewer particles per axis area, a 2.5×-coarser FEM ring, 2× the time step.
+        // Coarse: 5× fewer particles per axis area, a 2.5×-coarser FEM ring, 4× the time step.
         Tier::Quick => (
             Resolution {
                 h: 0.2,
                 ppc: 4,
                 cells: [2, 120],
-                dt: 4e-4,
+                dt: 8e-4,
                 tolerance: 1e-6,
             },
             0.4,
