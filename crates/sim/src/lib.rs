@@ -4,10 +4,12 @@
 //! contact, simulated with **BFEMP** — implicit MPM–FEM coupling through barrier particle–mesh
 //! contact (the unknowns are MPM grid-node and FEM vertex positions; one step minimises the
 //! incremental potential of eq. 38 by projected Newton with a CCD- and det F-filtered line
-//! search, so no particle ever enters a FEM body).
+//! search, so no particle ever enters a FEM body) — or, for scenes with `"method": "augury"`,
+//! FEM bodies stepped explicitly and touching through APIC augury contact (femp-augury).
 //!
 //! * [`scene`] — the JSON scene format (`docs/scenes.md`), loading with field paths in errors.
-//! * [`World`] — the state built from a scene; [`World::step`] is one BFEMP step (Algorithm 1).
+//! * [`World`] — the state built from a scene; [`World::step`] is one BFEMP step (Algorithm 1)
+//!   or one explicit augury step; [`World::contact_forces`] gives the barrier (reaction) forces.
 //! * [`run`](run::run) — a whole run with output (`.vtu`/`.pvd` frames, `metrics.csv`,
 //!   `summary.json`) and progress.
 //!

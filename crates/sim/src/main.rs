@@ -5,7 +5,8 @@ use std::path::PathBuf;
 use anyhow::Context;
 use clap::{Parser, Subcommand};
 
-/// Elastic MPM and FEM bodies in frictional contact (BFEMP).
+/// Elastic MPM and FEM bodies in frictional contact: BFEMP (implicit, barrier contact) and APIC
+/// augury contact (explicit FEM), chosen by the scene's `method`.
 #[derive(Parser)]
 #[command(name = "femp", version, about, long_about = None)]
 struct Cli {
