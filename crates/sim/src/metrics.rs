@@ -172,22 +172,7 @@ impl<const D: usize> World<D> {
         // Barrier energy, minimum distance and penetrations, independent of the solver.
         for pair in &self.pairs {
             let target = &self.fem[pair.facets_of];
-            let (pts, w): (Vec<SVector<f64, D>>, Vec<f64>) = match &pair.points {
-                Points::Mpm { range } => {
-                    let mpm = self.mpm.as_ref().expect("MPM pair");
-                    (
-                        mpm.x[range.0..range.1].to_vec(),
-                        mpm.weight[range.0..range.1].to_vec(),
-                    )
-                }
-                Points::Fem { body } => {
-                    let b = &self.fem[*body];
-                    (
-                        b.boundary.vertices().iter().map(|&v| b.x[v]).collect(),
-                        b.vertex_weight.clone(),
-                    )
-                }
-            };
+            let (pts, w) = self.pair_points(pair);
             m.penetrations += inside_elements(&pts, &target.mesh, &target.x).len();
             let mut c = femp_contact::broad_phase::Candidates::default();
             femp_contact::broad_phase::candidates_within(
@@ -232,6 +217,27 @@ pub struct PairForce<const D: usize> {
 }
 
 impl<const D: usize> World<D> {
+    /// A pair's points (particles, or the boundary vertices of a FEM body) at their current
+    /// positions, with their contact weights.
+    fn pair_points(&self, pair: &crate::world::Pair<D>) -> (Vec<SVector<f64, D>>, Vec<f64>) {
+        match &pair.points {
+            Points::Mpm { range } => {
+                let mpm = self.mpm.as_ref().expect("MPM pair");
+                (
+                    mpm.x[range.0..range.1].to_vec(),
+                    mpm.weight[range.0..range.1].to_vec(),
+                )
+            }
+            Points::Fem { body } => {
+                let b = &self.fem[*body];
+                (
+                    b.boundary.vertices().iter().map(|&v| b.x[v]).collect(),
+                    b.vertex_weight.clone(),
+                )
+            }
+        }
+    }
+
     /// The barrier force of every contact pair at the current state (a reaction force, e.g. on a
     /// prescribed plate): the gradient of the pair's barrier energy with respect to its points,
     /// summed. Friction forces are not included.
@@ -240,22 +246,7 @@ impl<const D: usize> World<D> {
         let mut derivs = Vec::new();
         for pair in &self.pairs {
             let target = &self.fem[pair.facets_of];
-            let (pts, w): (Vec<SVector<f64, D>>, Vec<f64>) = match &pair.points {
-                Points::Mpm { range } => {
-                    let mpm = self.mpm.as_ref().expect("MPM pair");
-                    (
-                        mpm.x[range.0..range.1].to_vec(),
-                        mpm.weight[range.0..range.1].to_vec(),
-                    )
-                }
-                Points::Fem { body } => {
-                    let b = &self.fem[*body];
-                    (
-                        b.boundary.vertices().iter().map(|&v| b.x[v]).collect(),
-                        b.vertex_weight.clone(),
-                    )
-                }
-            };
+            let (pts, w) = self.pair_points(pair);
             let mut c = femp_contact::broad_phase::Candidates::default();
             femp_contact::broad_phase::candidates_within(
                 &pts,
