@@ -27,6 +27,7 @@ pub mod metrics;
 pub mod motion;
 mod objective;
 pub mod output;
+pub mod render;
 pub mod run;
 pub mod scene;
 mod step;

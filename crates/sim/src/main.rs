@@ -32,12 +32,35 @@ enum Command {
         /// No progress output.
         #[arg(long, short)]
         quiet: bool,
+        /// Draw pictures into DIR/pictures: key frames as PNG (particles coloured by von Mises
+        /// stress, FEM meshes with their edges, level sets shaded) and an animated GIF.
+        #[arg(long)]
+        pictures: bool,
+        /// Number of PNG key frames, evenly spaced from start to end (with --pictures).
+        #[arg(long, default_value_t = 6)]
+        key_frames: usize,
+        /// Number of GIF frames over the run; 0 for none (with --pictures).
+        #[arg(long, default_value_t = 60)]
+        gif_frames: usize,
+        /// Picture size in pixels, WIDTHxHEIGHT (with --pictures).
+        #[arg(long, default_value = "640x480", value_parser = parse_size)]
+        picture_size: (u32, u32),
     },
     /// Validate a scene without running it (format, values, initial overlaps).
     Check {
         /// Scene file.
         scene: PathBuf,
     },
+}
+
+fn parse_size(s: &str) -> Result<(u32, u32), String> {
+    let bad = || format!("`{s}`: expected WIDTHxHEIGHT, e.g. 640x480, each at least 64");
+    let (w, h) = s.split_once('x').ok_or_else(bad)?;
+    let (w, h): (u32, u32) = (w.parse().map_err(|_| bad())?, h.parse().map_err(|_| bad())?);
+    if w < 64 || h < 64 {
+        return Err(bad());
+    }
+    Ok((w, h))
 }
 
 fn main() -> std::process::ExitCode {
@@ -59,6 +82,10 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             max_steps,
             no_frames,
             quiet,
+            pictures,
+            key_frames,
+            gif_frames,
+            picture_size,
         } => {
             let s = femp::scene::load(&scene)?;
             // Ctrl-C stops after the current step; the files so far stay and the summary says so.
@@ -71,6 +98,12 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                 max_steps,
                 no_frames,
                 interrupt: Some(interrupt),
+                pictures: pictures.then(|| femp::render::PictureOptions {
+                    key_frames,
+                    gif_frames,
+                    size: picture_size,
+                    ..Default::default()
+                }),
             };
             let r = femp::run::run(s, &out, &opts)
                 .with_context(|| format!("running {}", scene.display()))?;

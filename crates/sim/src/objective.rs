@@ -172,11 +172,16 @@ pub struct StepObjective<'a, const D: usize> {
     gh: GridHessian<D>,
     cands: Candidates,
     terms: Vec<ContactTerm>,
-    ders: Vec<TermDerivatives<D>>,
     fem_trip: Vec<Triplet>,
     node_force: Vec<SVector<f64, D>>,
     /// The x the scratch state was last unpacked at.
     unpacked: Vec<f64>,
+    /// Incremented whenever the scratch state changes (a new x, a new friction operator).
+    generation: u64,
+    /// Contact derivatives per pair (barrier, friction) computed by the last `gradient`, valid
+    /// while `generation` equals `.1`: Newton asks for the Hessian at the same x right after
+    /// the gradient, and the term derivatives carry both.
+    contact_cache: (Vec<[Vec<TermDerivatives<D>>; 2]>, Option<u64>),
     /// Where the time went.
     pub(crate) timing: ObjectiveTiming,
     /// Number of active contact terms and smallest contact distance at the last gradient.
@@ -220,10 +225,14 @@ impl<'a, const D: usize> StepObjective<'a, D> {
             gh: GridHessian::new(),
             cands: Candidates::default(),
             terms: Vec::new(),
-            ders: Vec::new(),
             fem_trip: Vec::new(),
             node_force: Vec::new(),
             unpacked: Vec::new(),
+            generation: 0,
+            contact_cache: (
+                (0..pairs.len()).map(|_| [Vec::new(), Vec::new()]).collect(),
+                None,
+            ),
             timing: ObjectiveTiming::default(),
             last_contacts: (0, f64::INFINITY),
         }
@@ -241,6 +250,7 @@ impl<'a, const D: usize> StepObjective<'a, D> {
             return;
         }
         let clock = Instant::now();
+        self.generation += 1;
         self.unpacked.clear();
         self.unpacked.extend_from_slice(x);
         self.unpack_impl(x);
@@ -347,9 +357,43 @@ impl<'a, const D: usize> StepObjective<'a, D> {
             .collect_terms(&pts, &w, bx, &self.cands, &mut self.terms)
     }
 
+    /// Add the contact (barrier and lagged friction) gradient at the unpacked state into `g`,
+    /// keeping the term derivatives for the Hessian at the same state. Returns the number of
+    /// active terms and the smallest contact distance.
+    fn contact_gradient(&mut self, g: &mut [f64]) -> (usize, f64) {
+        let mut count = 0;
+        let mut dmin = f64::INFINITY;
+        let mut cache = std::mem::take(&mut self.contact_cache.0);
+        for k in 0..self.pairs.len() {
+            let [bar, fric] = &mut cache[k];
+            bar.clear();
+            fric.clear();
+            if self.collect(k).is_err() {
+                continue;
+            }
+            count += self.terms.len();
+            for t in &self.terms {
+                dmin = dmin.min(t.sq_dist.sqrt());
+            }
+            let pair = &self.pairs[k];
+            let pts = self.points(pair);
+            pair.potential
+                .derivatives(&self.terms, &pts, &self.fem_x[pair.facets_of], bar);
+            self.scatter(k, bar, Some(g), None);
+            if !self.friction[k].is_empty() {
+                let (dp, db) = self.displacements(&self.pairs[k]);
+                friction::derivatives(&self.pairs[k].friction, &self.friction[k], &dp, &db, fric);
+                self.scatter(k, fric, Some(g), None);
+            }
+        }
+        self.contact_cache = (cache, Some(self.generation));
+        (count, dmin)
+    }
+
     /// Recompute the lagged friction operator at `x` (Algorithm 1, lines 5 and 9).
     pub(crate) fn lag_friction(&mut self, x: &[f64]) {
         self.unpack(x);
+        self.generation += 1;
         for k in 0..self.pairs.len() {
             if self.pairs[k].friction.mu == 0.0 {
                 self.friction[k].clear();
@@ -619,35 +663,7 @@ impl<const D: usize> Objective for StepObjective<'_, D> {
             }
         }
         self.timing.fem_s += lap(&mut clock);
-        let mut count = 0;
-        let mut dmin = f64::INFINITY;
-        for k in 0..self.pairs.len() {
-            if self.collect(k).is_err() {
-                continue;
-            }
-            count += self.terms.len();
-            for t in &self.terms {
-                dmin = dmin.min(t.sq_dist.sqrt());
-            }
-            let pair = &self.pairs[k];
-            let pts = self.points(pair);
-            let mut ders = std::mem::take(&mut self.ders);
-            pair.potential
-                .derivatives(&self.terms, &pts, &self.fem_x[pair.facets_of], &mut ders);
-            self.scatter(k, &ders, Some(g), None);
-            if !self.friction[k].is_empty() {
-                let (dp, db) = self.displacements(&self.pairs[k]);
-                friction::derivatives(
-                    &self.pairs[k].friction,
-                    &self.friction[k],
-                    &dp,
-                    &db,
-                    &mut ders,
-                );
-                self.scatter(k, &ders, Some(g), None);
-            }
-            self.ders = ders;
-        }
+        let (count, dmin) = self.contact_gradient(g);
         self.timing.contact_s += lap(&mut clock);
         self.last_contacts = (count, dmin);
     }
@@ -724,29 +740,17 @@ impl<const D: usize> Objective for StepObjective<'_, D> {
             self.fem_trip = trip;
         }
         self.timing.fem_s += lap(&mut clock);
-        for k in 0..self.pairs.len() {
-            if self.collect(k).is_err() {
-                continue;
-            }
-            let pair = &self.pairs[k];
-            let pts = self.points(pair);
-            let mut ders = std::mem::take(&mut self.ders);
-            pair.potential
-                .derivatives(&self.terms, &pts, &self.fem_x[pair.facets_of], &mut ders);
-            self.scatter(k, &ders, None, Some(h));
-            if !self.friction[k].is_empty() {
-                let (dp, db) = self.displacements(&self.pairs[k]);
-                friction::derivatives(
-                    &self.pairs[k].friction,
-                    &self.friction[k],
-                    &dp,
-                    &db,
-                    &mut ders,
-                );
-                self.scatter(k, &ders, None, Some(h));
-            }
-            self.ders = ders;
+        if self.contact_cache.1 != Some(self.generation) {
+            // No gradient at this x and friction operator yet: compute the derivatives.
+            let mut scratch = vec![0.0; self.n_dofs];
+            self.contact_gradient(&mut scratch);
         }
+        let cache = std::mem::take(&mut self.contact_cache.0);
+        for (k, [bar, fric]) in cache.iter().enumerate() {
+            self.scatter(k, bar, None, Some(h));
+            self.scatter(k, fric, None, Some(h));
+        }
+        self.contact_cache.0 = cache;
         self.timing.contact_s += lap(&mut clock);
         if self.mpm.is_some() {
             self.gh.emit(h);
@@ -1022,6 +1026,67 @@ mod tests {
             &SCENE_3D
                 .replace("0.001], \"max\"", "0.1], \"max\"")
                 .replace("0.06", "0.01"),
+        );
+    }
+
+    fn dense(t: &Triplets, n: usize) -> Vec<f64> {
+        let mut hd = vec![0.0; n * n];
+        for (r, c, v) in t.iter() {
+            hd[r * n + c] += v;
+        }
+        hd
+    }
+
+    /// The Hessian built from the derivatives the gradient kept equals one computed afresh, and
+    /// a new friction operator or a new x invalidates what was kept.
+    #[test]
+    fn hessian_from_the_gradients_contact_derivatives_equals_a_fresh_one() {
+        let mut w = world::<2>(SCENE_2D);
+        let setup = w.setup().unwrap();
+        let n = setup.n_dofs;
+        let r = noise(n, 5);
+        let x: Vec<f64> = (0..n).map(|d| setup.x0[d] + 1e-4 * r[d]).collect();
+        let y: Vec<f64> = (0..n).map(|d| setup.x0[d] - 2e-4 * r[d]).collect();
+        let fresh = |lag_at: &[f64], at: &[f64]| {
+            let mut obj = setup.objective(&w);
+            obj.lag_friction(lag_at);
+            let mut t = Triplets::default();
+            obj.hessian(at, &mut t);
+            dense(&t, n)
+        };
+        let same = |a: &[f64], b: &[f64], what: &str| {
+            let m = a.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+            for (k, (u, v)) in a.iter().zip(b).enumerate() {
+                assert!((u - v).abs() <= 1e-12 * m, "{what}: entry {k}: {u} vs {v}");
+            }
+        };
+        let mut obj = setup.objective(&w);
+        obj.lag_friction(&setup.x0);
+        let mut g = vec![0.0; n];
+        obj.gradient(&x, &mut g);
+        assert!(
+            obj.last_contacts.0 > 10,
+            "contact terms: {}",
+            obj.last_contacts.0
+        );
+        let mut t = Triplets::default();
+        obj.hessian(&x, &mut t);
+        let cached = dense(&t, n);
+        same(&cached, &fresh(&setup.x0, &x), "kept derivatives");
+        // A different x after the gradient.
+        t = Triplets::default();
+        obj.hessian(&y, &mut t);
+        same(&dense(&t, n), &fresh(&setup.x0, &y), "new x");
+        // A new friction operator (lagged at the same x) between gradient and Hessian.
+        obj.gradient(&x, &mut g);
+        obj.lag_friction(&x);
+        t = Triplets::default();
+        obj.hessian(&x, &mut t);
+        let relagged = dense(&t, n);
+        same(&relagged, &fresh(&x, &x), "new friction operator");
+        assert!(
+            relagged.iter().zip(&cached).any(|(a, b)| a != b),
+            "the friction operator must matter in this scene"
         );
     }
 }

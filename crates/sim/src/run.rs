@@ -7,6 +7,7 @@ use std::time::Instant;
 use crate::error::SimError;
 use crate::metrics::Metrics;
 use crate::output::{Output, Summary};
+use crate::render::{PictureOptions, Pictures};
 use crate::scene::Scene;
 use crate::world::World;
 
@@ -22,6 +23,8 @@ pub struct RunOptions {
     /// Set from elsewhere (e.g. a Ctrl-C handler) to stop the run after the current step; the
     /// run then ends with status `interrupted` and [`SimError::Interrupted`].
     pub interrupt: Option<std::sync::Arc<std::sync::atomic::AtomicBool>>,
+    /// Draw key frames (PNG) and an animated GIF into `out_dir/pictures` ([`crate::render`]).
+    pub pictures: Option<PictureOptions>,
 }
 
 /// Everything a finished run measured, for callers that use femp as a library.
@@ -94,6 +97,15 @@ pub fn run_with<const D: usize>(
     if !opts.no_frames {
         out.frame(&world)?;
     }
+    let mut pictures = match &opts.pictures {
+        Some(p) => {
+            let dir = out_dir.join("pictures");
+            let mut pics = Pictures::new(&world, &dir, total_steps as f64 * world.dt, p.clone())?;
+            pics.update(&world)?;
+            Some(pics)
+        }
+        None => None,
+    };
     let mut next_frame = frame_dt;
     let bar = (opts.progress && std::io::stderr().is_terminal()).then(|| {
         let b = indicatif::ProgressBar::new(total_steps as u64);
@@ -156,6 +168,9 @@ pub fn run_with<const D: usize>(
                     out.frame(&world)?;
                     next_frame += frame_dt;
                 }
+                if let Some(p) = &mut pictures {
+                    p.update(&world)?;
+                }
                 inspect(&world, &m);
                 let msg = if world.augury.is_some() {
                     format!("t = {:.4} s", world.time)
@@ -193,6 +208,13 @@ pub fn run_with<const D: usize>(
                 summary.error = Some(e.to_string());
                 summary.wall_s = start.elapsed().as_secs_f64();
                 summary.frames = out.frames();
+                if let Some(p) = pictures.take() {
+                    // The pictures up to the failure are worth keeping; a drawing error here
+                    // must not hide the run's own error.
+                    if let Err(d) = p.finish(&world) {
+                        eprintln!("warning: {d}");
+                    }
+                }
                 out.summary(&summary)?;
                 return Err(e);
             }
@@ -200,6 +222,9 @@ pub fn run_with<const D: usize>(
     }
     if let Some(b) = &bar {
         b.finish();
+    }
+    if let Some(p) = pictures.take() {
+        p.finish(&world)?;
     }
     summary.status = "completed".into();
     summary.wall_s = start.elapsed().as_secs_f64();

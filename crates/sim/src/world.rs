@@ -735,9 +735,23 @@ pub fn inside_elements<const D: usize>(
         .collect();
     let size = boxes.iter().map(|(l, h)| (h - l).amax()).sum::<f64>() / boxes.len() as f64;
     let cell = if size > 0.0 { size } else { 1.0 };
+    // Only elements that reach the points' bounding box can hold one (bodies apart or barely
+    // touching — the usual case when this runs every step — skip the table almost entirely).
+    let (plo, phi) = points
+        .iter()
+        .fold((points[0], points[0]), |(l, h), p| (l.inf(p), h.sup(p)));
+    let reaches = |(lo, hi): &(SVector<f64, D>, SVector<f64, D>)| {
+        (0..D).all(|k| lo[k] <= phi[k] && hi[k] >= plo[k])
+    };
+    if !boxes.iter().any(reaches) {
+        return Vec::new();
+    }
     let mut table: std::collections::HashMap<[i64; D], Vec<usize>> =
         std::collections::HashMap::new();
     for (e, (lo, hi)) in boxes.iter().enumerate() {
+        if !reaches(&(*lo, *hi)) {
+            continue;
+        }
         let a: [i64; D] = std::array::from_fn(|k| (lo[k] / cell).floor() as i64);
         let b: [i64; D] = std::array::from_fn(|k| (hi[k] / cell).floor() as i64);
         let n: usize = (0..D).map(|k| (b[k] - a[k] + 1) as usize).product();

@@ -31,6 +31,7 @@ fn quiet(max_steps: Option<usize>) -> RunOptions {
         max_steps,
         no_frames: true,
         interrupt: None,
+        pictures: None,
     }
 }
 

@@ -10,6 +10,7 @@
 //! the exit code is non-zero if any check fails.
 
 mod augury;
+mod buckling;
 mod charts;
 mod compare;
 mod hertz;
@@ -23,7 +24,7 @@ mod stability;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
-use anyhow::{Result, bail};
+use anyhow::{Context, Result, bail};
 use femp::metrics::Metrics;
 use femp::run::{RunOptions, RunResult, run_with};
 
@@ -158,7 +159,49 @@ pub struct Outcome {
     /// Plain-language notes for the report (where a result differs from the paper, and by how
     /// much; what the scene is).
     pub notes: Vec<String>,
+    /// Scene pictures: a caption and its images (key frames, then an animation), shown in a row.
+    pub pictures: Vec<(String, Vec<PathBuf>)>,
 }
+
+/// Runs that get scene pictures in the report: label, caption, key frames (evenly spaced from
+/// start to end), whether only the last key frame is shown, whether a GIF is made.
+const PICTURES: &[(&str, &str, usize, bool, bool)] = &[
+    (
+        "rings_apic",
+        "MPM ring (left) against FEM ring (right), APIC",
+        4,
+        false,
+        true,
+    ),
+    ("sine_fem", "FEM sine boundary (BFEMP)", 4, false, false),
+    ("sine_level_set", "Level-set sine boundary", 4, true, false),
+    (
+        "hertz_linear_h0.05",
+        "Brazilian disk, h = 0.05",
+        2,
+        true,
+        false,
+    ),
+    (
+        "hertz_linear_h0.025",
+        "Brazilian disk, h = 0.025",
+        2,
+        true,
+        false,
+    ),
+    ("slope_mu_0.1", "Box on the slope, μ = 0.1", 3, false, false),
+    ("buckling_mu0", "μ = 0", 3, false, true),
+    ("buckling_mu0.2", "μ = 0.2, end", 2, true, false),
+    ("buckling_mu0.5", "μ = 0.5, end", 2, true, false),
+    (
+        "blocks3d_apic_friction_h1",
+        "APIC N = 1, h = 1",
+        3,
+        false,
+        true,
+    ),
+    ("ramp3d_n1_h1", "Ramp, N = 1, h = 1", 2, true, false),
+];
 
 /// An experiment of the suite.
 struct Experiment {
@@ -179,9 +222,53 @@ pub struct Ctx {
     /// Workspace root (for fixtures).
     pub root: PathBuf,
     progress: indicatif::MultiProgress,
+    /// Pictured runs so far: label, caption, which files to show.
+    pictured: std::cell::RefCell<Vec<(String, String, usize, bool)>>,
 }
 
 impl Ctx {
+    /// Picture options for `label` if the report shows its pictures (see `PICTURES`).
+    fn pictures_for(&self, label: &str) -> Option<femp::render::PictureOptions> {
+        let &(_, caption, keys, last_only, gif) = PICTURES.iter().find(|p| p.0 == label)?;
+        self.pictured
+            .borrow_mut()
+            .push((label.to_string(), caption.to_string(), keys, last_only));
+        Some(femp::render::PictureOptions {
+            key_frames: keys,
+            gif_frames: if gif { 30 } else { 0 },
+            size: (320, 240),
+            gif_delay_ms: 120,
+        })
+    }
+
+    /// Copy the pictures of the runs made so far into the charts directory and list them in
+    /// `out` (key frames side by side, then the GIF if there is one).
+    fn collect_pictures(&self, out: &mut Outcome) -> Result<()> {
+        for (label, caption, keys, last_only) in self.pictured.borrow_mut().drain(..) {
+            let src = self.dir.join(&label).join("pictures");
+            std::fs::create_dir_all(&self.charts)?;
+            let mut files = Vec::new();
+            let first = if last_only { keys - 1 } else { 0 };
+            for k in first..keys {
+                let name = format!("key_{k:02}.png");
+                if !src.join(&name).exists() {
+                    continue; // the run stopped early
+                }
+                let dst = self.charts.join(format!("scene_{label}_{name}"));
+                std::fs::copy(src.join(&name), &dst)
+                    .with_context(|| format!("copying {}", src.join(&name).display()))?;
+                files.push(dst);
+            }
+            if src.join("animation.gif").exists() {
+                let dst = self.charts.join(format!("scene_{label}.gif"));
+                std::fs::copy(src.join("animation.gif"), &dst)?;
+                files.push(dst);
+            }
+            out.pictures.push((caption, files));
+        }
+        Ok(())
+    }
+
     /// Run a 2D scene, recording `probe(world)` after every step.
     pub fn run_scene_2d<T>(
         &self,
@@ -197,14 +284,27 @@ impl Ctx {
         &self,
         label: &str,
         json: &str,
-        mut probe: impl FnMut(&femp::World<D>) -> T,
+        probe: impl FnMut(&femp::World<D>) -> T,
     ) -> Result<(RunResult, Vec<T>)> {
+        let (r, probes) = self.run_scene_keep::<D, T>(label, json, probe)?;
+        Ok((r?, probes))
+    }
+
+    /// Run a `D`-dimensional scene, recording `probe(world)` after every step (with pictures if
+    /// `PICTURES` lists the label); a run that fails mid-way still returns its probes.
+    pub fn run_scene_keep<const D: usize, T>(
+        &self,
+        label: &str,
+        json: &str,
+        mut probe: impl FnMut(&femp::World<D>) -> T,
+    ) -> Result<(Result<RunResult, femp::SimError>, Vec<T>)> {
         let scene = femp::scene::parse(json, label, self.root.join("fixtures/scenes"), label)?;
         anyhow::ensure!(scene.spec.dimension == D, "{label}: not a {D}D scene");
         let bar = self.bar(label, &scene);
         let out = self.dir.join(label);
         let opts = RunOptions {
             no_frames: true,
+            pictures: self.pictures_for(label),
             ..Default::default()
         };
         let mut probes = Vec::new();
@@ -214,7 +314,7 @@ impl Ctx {
         });
         bar.finish_and_clear();
         self.progress.remove(&bar);
-        Ok((r?, probes))
+        Ok((r, probes))
     }
 
     fn bar(&self, label: &str, scene: &femp::scene::Scene) -> indicatif::ProgressBar {
@@ -237,6 +337,7 @@ impl Ctx {
         let out = self.dir.join(label);
         let opts = RunOptions {
             no_frames: true,
+            pictures: self.pictures_for(label),
             ..Default::default()
         };
         let r = match scene.spec.dimension {
@@ -284,7 +385,7 @@ const EXPERIMENTS: &[Experiment] = &[
         name: "buckling",
         section: "BFEMP 6.6",
         title: "Semicircular rings compressed: buckling order vs μ",
-        run: None,
+        run: Some(buckling::run),
     },
     Experiment {
         name: "twist",
@@ -416,9 +517,15 @@ pub fn main(args: &[String]) -> Result<()> {
             charts: out.join("charts"),
             root: root.clone(),
             progress: progress.clone(),
+            pictured: Default::default(),
         };
         let t = Instant::now();
-        let outcome = run(&ctx).map_err(|err| format!("{err:#}"));
+        let outcome = run(&ctx)
+            .and_then(|mut o| {
+                ctx.collect_pictures(&mut o)?;
+                Ok(o)
+            })
+            .map_err(|err| format!("{err:#}"));
         let d = Done {
             name: e.name,
             section: e.section,

@@ -182,6 +182,20 @@ pub fn write(out: &Path, tier: Tier, done: &[Done], total_s: f64) -> Result<()> 
                     let rel = png.strip_prefix(out).unwrap_or(png);
                     let _ = writeln!(s, "![{caption}]({})\n", rel.display());
                 }
+                for (caption, files) in &o.pictures {
+                    let _ = writeln!(s, "{caption}:\n");
+                    let row: Vec<String> = files
+                        .iter()
+                        .map(|f| {
+                            let rel = f.strip_prefix(out).unwrap_or(f);
+                            let name = rel
+                                .file_name()
+                                .map_or_else(String::new, |n| n.to_string_lossy().into_owned());
+                            format!("![{name}]({})", rel.display())
+                        })
+                        .collect();
+                    let _ = writeln!(s, "{}\n", row.join(" "));
+                }
             }
         }
     }

@@ -1,0 +1,294 @@
+//! BFEMP §6.6: an MPM semicircular ring (r 10–11.99 m) inside a FEM one (r 12–14 m), both
+//! E = 1e6 Pa, ν = 0.3, ρ = 100 kg/m²; a FEM plate 1e-3 m above the outer ring moves down at
+//! 1 m/s (μ = 10 against the outer ring: a no-slip press); the feet are fixed (prescribed FEM
+//! vertices, a no-slip level set under the MPM ring). μ between the rings is 0, 0.2 or 0.5.
+//! Paper: d̂ = 1e-3, κ = 1e5, ε_v = 1e-5, backward Euler, Δt = 1e-2, ε_d = 1e-4, h = 0.25,
+//! 10 261 particles, 2 714 FEM vertices; the inner ring buckles first with μ = 0, later with 0.2,
+//! not at all with 0.5.
+//!
+//! Buckling is measured by how far the inner ring pulls away from the outer one: for every
+//! particle of the inner ring's outer surface (above the feet), its distance to the outer ring's
+//! inner boundary minus its distance at the start; the largest over the surface is the
+//! separation. The inner ring buckles when its crown folds inwards and its shoulders leave the
+//! outer ring: the separation then grows to a fraction of the ring's thickness. The buckling
+//! displacement is the plate displacement at which the separation first reaches a quarter of the
+//! thickness (0.5 m); the order check compares the separations late in the run.
+
+use anyhow::Result;
+use nalgebra::Vector2;
+
+use super::charts::{self, Chart, Series};
+use super::{Check, Ctx, Outcome, Status, Tier};
+
+/// Separation that counts as buckled: a quarter of the inner ring's thickness (m).
+const BUCKLED: f64 = 0.5;
+
+#[derive(Clone, Copy, Debug)]
+struct Sample {
+    /// Plate displacement (m).
+    u: f64,
+    /// Vertical force on the inner ring from the outer one (N/m, positive down).
+    force: f64,
+    /// Height of the inner ring's crown (highest particle within 0.5 m of the axis).
+    crown: f64,
+    /// Largest increase of the distance from a particle of the inner ring's outer surface to
+    /// the outer ring (feet excluded): how far the inner ring has pulled away.
+    gap: f64,
+}
+
+fn segment_distance(p: &Vector2<f64>, a: &Vector2<f64>, b: &Vector2<f64>) -> f64 {
+    let ab = b - a;
+    let t = ((p - a).dot(&ab) / ab.norm_squared()).clamp(0.0, 1.0);
+    (p - (a + t * ab)).norm()
+}
+
+/// The inner ring's outer-surface particles (above the feet) and the outer ring's inner
+/// boundary edges, chosen from the initial state.
+struct Surfaces {
+    particles: Vec<usize>,
+    edges: Vec<[usize; 2]>,
+    /// Each particle's distance at the start.
+    start: Vec<f64>,
+}
+
+impl Surfaces {
+    fn of(w: &femp::World<2>, spacing: f64) -> Self {
+        let m = w.mpm.as_ref().expect("an MPM ring");
+        let particles = (0..m.x.len())
+            .filter(|&p| m.x[p].norm() > 11.99 - 0.75 * spacing && m.x[p][1] > 1.0)
+            .collect();
+        let outer = w
+            .fem
+            .iter()
+            .find(|b| b.name == "outer")
+            .expect("outer ring");
+        let edges = outer
+            .boundary
+            .facets()
+            .iter()
+            .map(|f| [f[0], f[1]])
+            .filter(|e| e.iter().all(|&v| outer.initial[v].norm() < 12.0 + 1e-6))
+            .collect();
+        let mut s = Self {
+            particles,
+            edges,
+            start: Vec::new(),
+        };
+        s.start = s.distances(w);
+        s
+    }
+
+    fn gap(&self, w: &femp::World<2>) -> f64 {
+        self.distances(w)
+            .iter()
+            .zip(&self.start)
+            .map(|(d, d0)| d - d0)
+            .fold(0.0, f64::max)
+    }
+
+    fn distances(&self, w: &femp::World<2>) -> Vec<f64> {
+        let (Some(m), Some(outer)) = (w.mpm.as_ref(), w.fem.iter().find(|b| b.name == "outer"))
+        else {
+            return Vec::new();
+        };
+        self.particles
+            .iter()
+            .map(|&p| {
+                self.edges
+                    .iter()
+                    .map(|e| segment_distance(&m.x[p], &outer.x[e[0]], &outer.x[e[1]]))
+                    .fold(f64::INFINITY, f64::min)
+            })
+            .collect()
+    }
+}
+
+/// Plate displacement at which the separation first reaches `BUCKLED`.
+fn buckling_displacement(samples: &[Sample]) -> Option<f64> {
+    samples.iter().find(|s| s.gap >= BUCKLED).map(|s| s.u)
+}
+
+/// Mean separation over the last quarter of the run.
+fn late_separation(samples: &[Sample]) -> f64 {
+    let end = samples.last().map_or(0.0, |s| s.u);
+    let late: Vec<f64> = samples
+        .iter()
+        .filter(|s| s.u >= 0.75 * end)
+        .map(|s| s.gap)
+        .collect();
+    late.iter().sum::<f64>() / late.len().max(1) as f64
+}
+
+/// Run the experiment.
+pub fn run(ctx: &Ctx) -> Result<Outcome> {
+    let mut v: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(
+        ctx.root.join("fixtures/scenes/buckling.json"),
+    )?)?;
+    let (h, ppc, cells, dt, duration) = match ctx.tier {
+        Tier::Quick => (0.5, 4, [4, 150], 1e-2, 5.0),
+        Tier::Full => (0.25, 9, [8, 300], 1e-2, 6.0),
+    };
+    v["mpm"]["grid_spacing"] = serde_json::json!(h);
+    v["bodies"][0]["particles_per_cell"] = serde_json::json!(ppc);
+    v["bodies"][1]["mesh"]["semicircular_ring"]["cells"] = serde_json::json!(cells);
+    v["time"]["dt"] = serde_json::json!(dt);
+    v["time"]["duration"] = serde_json::json!(duration);
+    let mut out = Outcome::default();
+    let mut series = Vec::new();
+    let mut gap_series = Vec::new();
+    let mut found = Vec::new();
+    for (k, mu) in [0.0, 0.2, 0.5].into_iter().enumerate() {
+        v["contact"]["friction"] = serde_json::json!(mu);
+        let label = format!("buckling_mu{mu}");
+        let mut surfaces: Option<Surfaces> = None;
+        let spacing = h / (ppc as f64).sqrt();
+        let (r, samples) =
+            ctx.run_scene_keep::<2, Sample>(&label, &serde_json::to_string(&v)?, |w| {
+                let gap = surfaces
+                    .get_or_insert_with(|| Surfaces::of(w, spacing))
+                    .gap(w);
+                let force = w
+                    .contact_forces()
+                    .iter()
+                    .filter(|p| p.names.0 == "inner" && p.names.1 == "outer")
+                    .map(|p| -p.on_points[1])
+                    .sum();
+                let crown = w.mpm.as_ref().map_or(f64::NAN, |m| {
+                    m.x.iter()
+                        .filter(|x| x[0].abs() < 0.5)
+                        .map(|x| x[1])
+                        .fold(f64::NEG_INFINITY, f64::max)
+                });
+                Sample {
+                    u: w.time,
+                    force,
+                    crown,
+                    gap,
+                }
+            })?;
+        let reached = samples.last().map_or(0.0, |s| s.u);
+        let penetrations = match &r {
+            Ok(r) => r.metrics.iter().map(|m| m.penetrations).max().unwrap_or(0),
+            Err(_) => 0,
+        };
+        if let Err(e) = &r {
+            out.checks.push(Check {
+                figure: format!("μ = {mu}: run reaches u_y = {duration} m"),
+                measured: format!("stopped at u_y = {reached:.2} m"),
+                expected: format!("{duration} m"),
+                tolerance: "—".into(),
+                status: Status::Fail,
+            });
+            out.notes.push(format!("μ = {mu}: the run stopped: {e}"));
+        } else {
+            out.checks.push(Check::count(
+                &format!("μ = {mu}: penetrations, max over steps"),
+                penetrations,
+                0,
+            ));
+        }
+        let b = buckling_displacement(&samples);
+        let late = late_separation(&samples);
+        out.checks.push(Check::info(
+            &format!("μ = {mu}: buckling displacement u_y (m; separation ≥ {BUCKLED} m)"),
+            match b {
+                Some(u) => format!("{u:.2}"),
+                None => format!("none up to {reached:.2}"),
+            },
+            match k {
+                0 => "first".into(),
+                1 => "later than μ = 0".into(),
+                _ => "none".into(),
+            },
+        ));
+        out.checks.push(Check::info(
+            &format!("μ = {mu}: separation, mean of the last quarter (m)"),
+            format!("{late:.3}"),
+            "smaller with more friction".into(),
+        ));
+        found.push((b, late));
+        let crown0 = samples.first().map_or(0.0, |s| s.crown);
+        gap_series.push(Series::line(
+            format!("μ = {mu}"),
+            samples.iter().map(|s| (s.u, s.gap)).collect(),
+            k,
+        ));
+        let csv: String = std::iter::once("u_y,force,crown,gap\n".to_string())
+            .chain(
+                samples
+                    .iter()
+                    .map(|s| format!("{},{},{},{}\n", s.u, s.force, s.crown, s.gap)),
+            )
+            .collect();
+        std::fs::write(ctx.dir.join(format!("{label}.csv")), csv)?;
+        series.push(Series::line(
+            format!("μ = {mu}: force on the inner ring"),
+            samples.iter().map(|s| (s.u, s.force)).collect(),
+            k,
+        ));
+        out.notes.push(format!(
+            "μ = {mu}: inner crown moved {:.2} m down by u_y = {reached:.2} m.",
+            crown0 - samples.last().map_or(crown0, |s| s.crown)
+        ));
+    }
+    // Friction holds the inner ring against the outer one: the separation late in the run must
+    // fall as μ grows (the paper: μ = 0 buckles first, 0.2 later, 0.5 not at all).
+    let order_ok = found[0].1 > found[1].1 && found[1].1 > found[2].1;
+    out.checks.push(Check {
+        figure: "separation late in the run: μ = 0 > 0.2 > 0.5".into(),
+        measured: format!(
+            "{:.3} / {:.3} / {:.3} m",
+            found[0].1, found[1].1, found[2].1
+        ),
+        expected: "decreasing in μ".into(),
+        tolerance: "strict order".into(),
+        status: if order_ok { Status::Pass } else { Status::Fail },
+    });
+    let fmt = |x: Option<f64>| x.map_or("none".to_string(), |u| format!("{u:.2} m"));
+    out.notes.push(format!(
+        "Buckling displacements (separation ≥ {BUCKLED} m): μ = 0: {}, μ = 0.2: {}, μ = 0.5: {} \
+         (paper: μ = 0 first, 0.2 later, 0.5 none).",
+        fmt(found[0].0),
+        fmt(found[1].0),
+        fmt(found[2].0)
+    ));
+    out.notes.insert(
+        0,
+        format!(
+            "Grid h = {h}, {ppc} particles per cell, outer ring {}×{} cells, Δt = {dt} s, plate \
+             travel {duration} m (paper: h = 0.25, 10 261 particles, 2 714 FEM vertices, \
+             Δt = 1e-2). Separation = the largest increase of distance from the inner ring's \
+             outer surface to the outer ring; buckled = separation ≥ {BUCKLED} m (a quarter of \
+             the thickness). The force chart shows no limit point: the load the inner ring \
+             carries keeps rising while it buckles. The paper's slip level \
+             set under the middle of the rings is a no-slip ground plane here (it matters only \
+             if the inner crown reaches the ground). No gravity (the paper states none).",
+            cells[0], cells[1],
+        ),
+    );
+    let png = charts::write(
+        &ctx.charts,
+        &Chart {
+            stem: format!("buckling_{}", ctx.tier.name()),
+            title: "6.6 buckling: force on the inner ring vs plate displacement".into(),
+            x_label: "plate displacement u_y (m)".into(),
+            y_label: "vertical contact force (N/m)".into(),
+            series,
+        },
+    )?;
+    out.charts
+        .push(("Force from the outer ring on the inner one".into(), png));
+    let png = charts::write(
+        &ctx.charts,
+        &Chart {
+            stem: format!("buckling_gap_{}", ctx.tier.name()),
+            title: "6.6 buckling: how far the inner ring pulls away from the outer one".into(),
+            x_label: "plate displacement u_y (m)".into(),
+            y_label: "separation (m)".into(),
+            series: gap_series,
+        },
+    )?;
+    out.charts
+        .push(("Largest gap between the rings".into(), png));
+    Ok(out)
+}
