@@ -42,6 +42,9 @@ enum Command {
         /// Number of GIF frames over the run; 0 for none (with --pictures).
         #[arg(long, default_value_t = 60)]
         gif_frames: usize,
+        /// 3D pictures: the axis drawn upwards, x, y or z (default: against gravity, else y).
+        #[arg(long, value_parser = ["x", "y", "z"])]
+        up: Option<String>,
         /// Picture size in pixels, WIDTHxHEIGHT (with --pictures).
         #[arg(long, default_value = "640x480", value_parser = parse_size)]
         picture_size: (u32, u32),
@@ -86,6 +89,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             key_frames,
             gif_frames,
             picture_size,
+            up,
         } => {
             let s = femp::scene::load(&scene)?;
             // Ctrl-C stops after the current step; the files so far stay and the summary says so.
@@ -102,6 +106,11 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                     key_frames,
                     gif_frames,
                     size: picture_size,
+                    up: up.map(|a| match a.as_str() {
+                        "x" => 0,
+                        "y" => 1,
+                        _ => 2,
+                    }),
                     ..Default::default()
                 }),
             };

@@ -4,8 +4,8 @@
 //! one scale for particles and FEM cells that only grows during the run, so later frames are
 //! comparable with earlier ones). FEM meshes are drawn cell by cell with their edges; fully
 //! prescribed bodies (plates, moving boundaries) are grey. 2D level-set boundaries are shaded
-//! where they are solid. 3D scenes are seen from a fixed orthographic camera (y up, azimuth 35°,
-//! elevation 25°): FEM boundary facets with Lambert shading and particles, painted back to front.
+//! where they are solid. 3D scenes are seen from a fixed orthographic camera (azimuth 35°,
+//! elevation 25°; up is against gravity, or y, or the axis asked for): FEM boundary facets with Lambert shading and particles, painted back to front.
 //!
 //! The view is fixed over the run: the bounding box of every body at t = 0 with a margin.
 
@@ -33,6 +33,9 @@ pub struct PictureOptions {
     pub size: (u32, u32),
     /// Delay between GIF frames (ms).
     pub gif_delay_ms: u32,
+    /// 3D: the axis drawn upwards (0 = x, 1 = y, 2 = z); default: against gravity's largest
+    /// component, or y without gravity.
+    pub up: Option<usize>,
 }
 
 impl Default for PictureOptions {
@@ -42,6 +45,7 @@ impl Default for PictureOptions {
             gif_frames: 60,
             size: (640, 480),
             gif_delay_ms: 80,
+            up: None,
         }
     }
 }
@@ -70,14 +74,24 @@ fn lift<const D: usize>(x: &SVector<f64, D>) -> Vector3<f64> {
 }
 
 impl View {
-    fn new<const D: usize>(points: impl Iterator<Item = Vector3<f64>>, size: (u32, u32)) -> Self {
+    fn new<const D: usize>(
+        points: impl Iterator<Item = Vector3<f64>>,
+        size: (u32, u32),
+        up_axis: usize,
+    ) -> Self {
         let (right, up, toward) = if D == 2 {
             (Vector3::x(), Vector3::y(), Vector3::z())
         } else {
             let (az, el) = (35f64.to_radians(), 25f64.to_radians());
-            // Direction from the scene towards the camera.
-            let toward = Vector3::new(az.sin() * el.cos(), el.sin(), az.cos() * el.cos());
-            let right = Vector3::y().cross(&toward).normalize();
+            let axis = |k: usize| {
+                let mut e = Vector3::zeros();
+                e[k % 3] = 1.0;
+                e
+            };
+            let (u, a, b) = (axis(up_axis), axis(up_axis + 1), axis(up_axis + 2));
+            // Direction from the scene towards the camera (y up: a = z, b = x).
+            let toward = b * (az.sin() * el.cos()) + u * el.sin() + a * (az.cos() * el.cos());
+            let right = u.cross(&toward).normalize();
             let up = toward.cross(&right);
             (right, up, toward)
         };
@@ -191,7 +205,20 @@ impl Pictures {
         for b in &world.fem {
             pts.extend(b.x.iter().map(lift));
         }
-        let view = View::new::<D>(pts.into_iter(), opts.size);
+        let up = match opts.up {
+            Some(k) if k < D => k,
+            Some(k) => {
+                return Err(crate::error::invalid(
+                    "pictures.up",
+                    format!("axis {k} does not exist in {D}D"),
+                ));
+            }
+            None => {
+                let g = &world.gravity;
+                if g.norm() > 0.0 { g.iamax() } else { 1 }
+            }
+        };
+        let view = View::new::<D>(pts.into_iter(), opts.size, up);
         let gif = if opts.gif_frames > 0 {
             let path = dir.join("animation.gif");
             let backend =

@@ -138,3 +138,66 @@ fn femp_run_pictures_writes_key_frames_and_a_gif_even_when_the_run_fails() {
     assert!(!o.status.success());
     assert!(String::from_utf8_lossy(&o.stderr).contains("WIDTHxHEIGHT"));
 }
+
+#[test]
+fn three_d_pictures_put_the_chosen_axis_up() {
+    let json = json!({
+        "name": "cube", "dimension": 3,
+        "time": { "dt": 0.01, "duration": 0.1 },
+        "mpm": { "grid_spacing": 0.25 },
+        "bodies": [ { "kind": "mpm", "name": "cube",
+            "shape": { "box": { "min": [0, 0, 0], "max": [1, 1, 1] } },
+            "particles_per_cell": 1, "material": { "E": 1e5, "nu": 0.3, "rho": 1000 } } ]
+    });
+    let s = |j: &Value| femp::scene::parse(&j.to_string(), "cube", std::env::temp_dir(), "cube");
+    let dir = tempfile::tempdir().unwrap();
+    let world = World::<3>::build(s(&json).unwrap()).unwrap();
+    let row = |pics: &Pictures, p: [f64; 3]| pics.pixel(&nalgebra::Vector3::from(p)).1;
+    for (up, axis) in [(None, 1), (Some(2), 2), (Some(0), 0)] {
+        let opts = PictureOptions {
+            gif_frames: 0,
+            up,
+            ..Default::default()
+        };
+        let pics = Pictures::new(&world, dir.path(), 0.1, opts).unwrap();
+        let mut top = [0.0; 3];
+        top[axis] = 1.0;
+        // Rows count from the top: the upper end of the chosen axis is drawn higher.
+        assert!(
+            row(&pics, top) < row(&pics, [0.0; 3]),
+            "axis {axis} is not up"
+        );
+        // The chosen axis is drawn exactly vertical (up to pixel rounding).
+        let (a, b) = (
+            pics.pixel(&nalgebra::Vector3::from(top)),
+            pics.pixel(&nalgebra::Vector3::zeros()),
+        );
+        assert!(
+            (a.0 - b.0).abs() <= 1,
+            "axis {axis} drawn at a slant: {a:?} {b:?}"
+        );
+    }
+    // Gravity along −z puts z up; a non-existent axis is refused.
+    let mut g = json.clone();
+    g["gravity"] = json!([0, 0, -9.81]);
+    let world_g = World::<3>::build(s(&g).unwrap()).unwrap();
+    let pics = Pictures::new(
+        &world_g,
+        dir.path(),
+        0.1,
+        PictureOptions {
+            gif_frames: 0,
+            ..Default::default()
+        },
+    )
+    .unwrap();
+    assert!(row(&pics, [0.0, 0.0, 1.0]) < row(&pics, [0.0; 3]));
+    let bad = PictureOptions {
+        up: Some(3),
+        ..Default::default()
+    };
+    let e = Pictures::new(&world, dir.path(), 0.1, bad)
+        .err()
+        .expect("axis 3 refused");
+    assert!(e.to_string().contains("pictures.up"), "{e}");
+}

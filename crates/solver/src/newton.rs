@@ -406,6 +406,21 @@ impl Newton {
                 stats.backtracks += 1;
             }
             stats.line_search_s += t.elapsed().as_secs_f64();
+            // A backtracked step that leaves the energy exactly unchanged was accepted only
+            // because Armijo's bound rounds to `e` (α·gᵀp vanishes next to it): no progress.
+            // With a predicted decrease within a few thousand ulps of the energy the iterate is
+            // stationary to working precision — stop instead of repeating the zero step until
+            // the iteration limit. (Full steps with an unchanged energy are normal near a
+            // minimum, where the energy change is below round-off but x still improves.)
+            if accepted == Some(e)
+                && alpha < 1.0
+                && at_targets
+                && -gp <= 1e4 * ROUNDOFF * e.abs().max(e0.abs())
+            {
+                stats.roundoff_stops += 1;
+                finish(&mut stats, &self.chol, e);
+                return Ok(stats);
+            }
             match accepted {
                 Some(et) => {
                     x.copy_from_slice(&self.trial);

@@ -728,3 +728,49 @@ fn a_search_direction_lost_in_round_off_ends_the_solve_as_stationary() {
         .unwrap_err();
     assert!(matches!(err, SolveError::IterationLimit { .. }), "{err:?}");
 }
+
+/// An energy flat to round-off around the iterate (the change of a small step is below one ulp
+/// of it), a gradient whose predicted decrease is above the "flat" threshold but within a few
+/// thousand ulps, and a step bound that forces α < 1: Armijo accepts the backtracked step only
+/// because its bound rounds to E, and nothing changes.
+struct FlatWithBound;
+
+impl Objective for FlatWithBound {
+    fn num_dofs(&self) -> usize {
+        1
+    }
+    fn energy(&mut self, _x: &[f64]) -> f64 {
+        1.0
+    }
+    fn gradient(&mut self, _x: &[f64], g: &mut [f64]) {
+        g[0] = -1e-11;
+    }
+    fn hessian(&mut self, _x: &[f64], h: &mut Triplets) {
+        h.push(0, 0, 1e-9);
+    }
+    fn max_step(&mut self, _x: &[f64], _p: &[f64]) -> StepBound {
+        StepBound {
+            alpha: 1e-6,
+            limit: Some(StepLimit::Other),
+        }
+    }
+}
+
+#[test]
+fn a_backtracked_step_that_leaves_the_energy_unchanged_ends_the_solve_as_stationary() {
+    // p = 10⁻² every iteration, −gᵀp = 10⁻¹³: above 10⁻¹⁵ |E| (not "flat"), below 10⁻¹¹ |E|.
+    // Before, each iteration accepted α ≈ 10⁻⁶ with E unchanged and ‖p‖ never shrank: the
+    // solve ran into the iteration limit.
+    let params = NewtonParams {
+        tolerance: 1e-6,
+        dt: 1.0,
+        max_iterations: 50,
+        ..Default::default()
+    };
+    let mut x = vec![0.0];
+    let stats = Newton::new()
+        .minimize(&mut FlatWithBound, &mut x, &[false], &params)
+        .unwrap();
+    assert_eq!(stats.roundoff_stops, 1, "{stats:?}");
+    assert_eq!(stats.iterations, 1, "{stats:?}");
+}

@@ -238,6 +238,7 @@ impl Ctx {
             gif_frames: if gif { 30 } else { 0 },
             size: (320, 240),
             gif_delay_ms: 120,
+            up: None,
         })
     }
 
