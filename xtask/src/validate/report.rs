@@ -203,14 +203,34 @@ pub fn write(out: &Path, tier: Tier, done: &[Done], total_s: f64) -> Result<()> 
     std::fs::write(&path, s).with_context(|| format!("writing {}", path.display()))
 }
 
-/// Copy the report and its charts into `docs` (the committed report of the full tier).
+/// Copy the report and the charts and pictures it shows (with each chart's SVG) into `docs`,
+/// removing what the new report no longer shows (stale files from earlier runs stay out).
 pub fn publish(out: &Path, docs: &Path) -> Result<()> {
-    std::fs::create_dir_all(docs.join("charts"))?;
-    std::fs::copy(out.join("README.md"), docs.join("README.md"))?;
-    if let Ok(rd) = std::fs::read_dir(out.join("charts")) {
-        for e in rd.flatten() {
-            std::fs::copy(e.path(), docs.join("charts").join(e.file_name()))?;
+    let charts = docs.join("charts");
+    std::fs::create_dir_all(&charts)?;
+    let report = std::fs::read_to_string(out.join("README.md"))?;
+    let mut keep = std::collections::BTreeSet::new();
+    for part in report.split("](charts/").skip(1) {
+        if let Some(name) = part.split(')').next() {
+            keep.insert(name.to_string());
+            if let Some(stem) = name.strip_suffix(".png") {
+                keep.insert(format!("{stem}.svg"));
+            }
         }
     }
+    for name in &keep {
+        let src = out.join("charts").join(name);
+        if src.exists() {
+            std::fs::copy(&src, charts.join(name))
+                .with_context(|| format!("copying {}", src.display()))?;
+        }
+    }
+    for e in std::fs::read_dir(&charts)?.flatten() {
+        let name = e.file_name().to_string_lossy().into_owned();
+        if !keep.contains(&name) {
+            std::fs::remove_file(e.path())?;
+        }
+    }
+    std::fs::write(docs.join("README.md"), report)?;
     Ok(())
 }
