@@ -280,7 +280,8 @@ pub fn run(ctx: &Ctx) -> Result<Outcome> {
              the thickness). The force chart shows no limit point: the load the inner ring \
              carries keeps rising while it buckles. The paper's slip level \
              set under the middle of the rings is a no-slip ground plane here (it matters only \
-             if the inner crown reaches the ground). No gravity (the paper states none).",
+             if the inner crown reaches the ground). No gravity (the paper states none). The \
+             full tier's figures are in docs/bfemp.md.",
             cells[0], cells[1],
         ),
     );

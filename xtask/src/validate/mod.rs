@@ -20,6 +20,7 @@ mod rings;
 mod sine;
 mod slope;
 mod stability;
+mod twist;
 
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -165,22 +166,38 @@ pub struct Outcome {
 
 /// Runs that get scene pictures in the report: label, caption, key frames (evenly spaced from
 /// start to end), whether only the last key frame is shown, whether a GIF is made.
-const PICTURES: &[(&str, &str, usize, bool, bool)] = &[
+const PICTURES: &[(&str, &str, usize, bool, bool, Option<usize>)] = &[
     (
         "rings_apic",
         "MPM ring (left) against FEM ring (right), APIC",
         4,
         false,
         true,
+        None,
     ),
-    ("sine_fem", "FEM sine boundary (BFEMP)", 4, false, false),
-    ("sine_level_set", "Level-set sine boundary", 4, true, false),
+    (
+        "sine_fem",
+        "FEM sine boundary (BFEMP)",
+        4,
+        false,
+        false,
+        None,
+    ),
+    (
+        "sine_level_set",
+        "Level-set sine boundary",
+        4,
+        true,
+        false,
+        None,
+    ),
     (
         "hertz_linear_h0.05",
         "Brazilian disk, h = 0.05",
         2,
         true,
         false,
+        None,
     ),
     (
         "hertz_linear_h0.025",
@@ -188,19 +205,29 @@ const PICTURES: &[(&str, &str, usize, bool, bool)] = &[
         2,
         true,
         false,
+        None,
     ),
-    ("slope_mu_0.1", "Box on the slope, μ = 0.1", 3, false, false),
-    ("buckling_mu0", "μ = 0", 3, false, true),
-    ("buckling_mu0.2", "μ = 0.2, end", 2, true, false),
-    ("buckling_mu0.5", "μ = 0.5, end", 2, true, false),
+    (
+        "slope_mu_0.1",
+        "Box on the slope, μ = 0.1",
+        3,
+        false,
+        false,
+        None,
+    ),
+    ("buckling_mu0", "μ = 0", 3, false, true, None),
+    ("buckling_mu0.2", "μ = 0.2, end", 2, true, false, None),
+    ("buckling_mu0.5", "μ = 0.5, end", 2, true, false, None),
     (
         "blocks3d_apic_friction_h1",
         "APIC N = 1, h = 1",
         3,
         false,
         true,
+        None,
     ),
-    ("ramp3d_n1_h1", "Ramp, N = 1, h = 1", 2, true, false),
+    ("ramp3d_n1_h1", "Ramp, N = 1, h = 1", 2, true, false, None),
+    ("twist_mu1", "μ = 1", 3, false, true, Some(2)),
 ];
 
 /// An experiment of the suite.
@@ -229,7 +256,7 @@ pub struct Ctx {
 impl Ctx {
     /// Picture options for `label` if the report shows its pictures (see `PICTURES`).
     fn pictures_for(&self, label: &str) -> Option<femp::render::PictureOptions> {
-        let &(_, caption, keys, last_only, gif) = PICTURES.iter().find(|p| p.0 == label)?;
+        let &(_, caption, keys, last_only, gif, up) = PICTURES.iter().find(|p| p.0 == label)?;
         self.pictured
             .borrow_mut()
             .push((label.to_string(), caption.to_string(), keys, last_only));
@@ -238,7 +265,7 @@ impl Ctx {
             gif_frames: if gif { 30 } else { 0 },
             size: (320, 240),
             gif_delay_ms: 120,
-            up: None,
+            up,
         })
     }
 
@@ -392,7 +419,7 @@ const EXPERIMENTS: &[Experiment] = &[
         name: "twist",
         section: "BFEMP 6.7",
         title: "3D shell twisting an MPM cube: slip angles vs μ",
-        run: None,
+        run: Some(twist::run),
     },
     Experiment {
         name: "two_particles",
