@@ -164,70 +164,64 @@ pub struct Outcome {
     pub pictures: Vec<(String, Vec<PathBuf>)>,
 }
 
-/// Runs that get scene pictures in the report: label, caption, key frames (evenly spaced from
-/// start to end), whether only the last key frame is shown, whether a GIF is made.
-const PICTURES: &[(&str, &str, usize, bool, bool, Option<usize>)] = &[
-    (
-        "rings_apic",
-        "MPM ring (left) against FEM ring (right), APIC",
-        4,
-        false,
-        true,
-        None,
-    ),
-    (
-        "sine_fem",
-        "FEM sine boundary (BFEMP)",
-        4,
-        false,
-        false,
-        None,
-    ),
-    (
-        "sine_level_set",
-        "Level-set sine boundary",
-        4,
-        true,
-        false,
-        None,
-    ),
-    (
-        "hertz_linear_h0.05",
-        "Brazilian disk, h = 0.05",
-        2,
-        true,
-        false,
-        None,
-    ),
-    (
-        "hertz_linear_h0.025",
-        "Brazilian disk, h = 0.025",
-        2,
-        true,
-        false,
-        None,
-    ),
-    (
-        "slope_mu_0.1",
-        "Box on the slope, μ = 0.1",
-        3,
-        false,
-        false,
-        None,
-    ),
-    ("buckling_mu0", "μ = 0", 3, false, true, None),
-    ("buckling_mu0.2", "μ = 0.2, end", 2, true, false, None),
-    ("buckling_mu0.5", "μ = 0.5, end", 2, true, false, None),
-    (
-        "blocks3d_apic_friction_h1",
-        "APIC N = 1, h = 1",
-        3,
-        false,
-        true,
-        None,
-    ),
-    ("ramp3d_n1_h1", "Ramp, N = 1, h = 1", 2, true, false, None),
-    ("twist_mu1", "μ = 1", 3, false, true, Some(2)),
+/// A run whose scene pictures the report shows.
+struct Pictured {
+    /// The run's label.
+    label: &'static str,
+    /// Caption in the report.
+    caption: &'static str,
+    /// Key frames, evenly spaced from start to end.
+    keys: usize,
+    /// Show only the last key frame.
+    last_only: bool,
+    /// Make a GIF.
+    gif: bool,
+    /// The axis drawn up in 3D (`None`: against gravity).
+    up: Option<usize>,
+}
+
+/// Runs that get scene pictures in the report.
+const PICTURES: &[Pictured] = &[
+    Pictured {
+        label: "buckling_mu0",
+        caption: "μ = 0",
+        keys: 3,
+        last_only: false,
+        gif: true,
+        up: None,
+    },
+    Pictured {
+        label: "buckling_mu0.2",
+        caption: "μ = 0.2, end",
+        keys: 2,
+        last_only: true,
+        gif: false,
+        up: None,
+    },
+    Pictured {
+        label: "buckling_mu0.5",
+        caption: "μ = 0.5, end",
+        keys: 2,
+        last_only: true,
+        gif: false,
+        up: None,
+    },
+    Pictured {
+        label: "ramp3d_n1_h1",
+        caption: "Ramp, N = 1, h = 1",
+        keys: 2,
+        last_only: true,
+        gif: false,
+        up: None,
+    },
+    Pictured {
+        label: "twist_mu1",
+        caption: "μ = 1",
+        keys: 3,
+        last_only: false,
+        gif: true,
+        up: Some(2),
+    },
 ];
 
 /// An experiment of the suite.
@@ -256,7 +250,14 @@ pub struct Ctx {
 impl Ctx {
     /// Picture options for `label` if the report shows its pictures (see `PICTURES`).
     fn pictures_for(&self, label: &str) -> Option<femp::render::PictureOptions> {
-        let &(_, caption, keys, last_only, gif, up) = PICTURES.iter().find(|p| p.0 == label)?;
+        let &Pictured {
+            caption,
+            keys,
+            last_only,
+            gif,
+            up,
+            ..
+        } = PICTURES.iter().find(|p| p.label == label)?;
         self.pictured
             .borrow_mut()
             .push((label.to_string(), caption.to_string(), keys, last_only));
