@@ -148,12 +148,15 @@ impl View {
     }
 }
 
-fn register_font() {
+/// Register the embedded DejaVu Sans (regular and bold) under the family names plotters asks
+/// for, once per process: pictures and charts then need no system font libraries.
+pub fn register_fonts() {
     static ONCE: Once = Once::new();
     ONCE.call_once(|| {
         for family in ["sans-serif", "serif"] {
             let _ =
                 plotters::style::register_font(family, FontStyle::Normal, dejavu::sans::regular());
+            let _ = plotters::style::register_font(family, FontStyle::Bold, dejavu::sans::bold());
         }
     });
 }
@@ -193,7 +196,7 @@ impl Pictures {
                 "need 0 or ≥ 2 key frames and at least 64 × 64 pixels",
             ));
         }
-        register_font();
+        register_fonts();
         std::fs::create_dir_all(dir).map_err(|source| SimError::Io {
             path: dir.to_path_buf(),
             source,
@@ -242,9 +245,9 @@ impl Pictures {
 
     /// Draw whatever is due at the world's current time (call at t = 0 and after every step).
     pub fn update<const D: usize>(&mut self, world: &World<D>) -> Result<(), SimError> {
-        let t = world.time;
-        let due = |k: usize, n: usize| -> bool {
-            n > 0 && k < n && t + 1e-12 >= self.duration * k as f64 / (n.max(2) - 1) as f64
+        let (t, duration) = (world.time, self.duration);
+        let due = move |k: usize, n: usize| -> bool {
+            n > 0 && k < n && t + 1e-12 >= duration * k as f64 / (n.max(2) - 1) as f64
         };
         let key = due(self.keys_done, self.opts.key_frames);
         let gif = self.gif.is_some() && due(self.gif_done, self.opts.gif_frames);
@@ -254,13 +257,7 @@ impl Pictures {
         let scene = Snapshot::of(world, &self.view);
         self.stress_max = self.stress_max.max(scene.stress_max);
         if key {
-            let path = self.dir.join(format!("key_{:02}.png", self.keys_done));
-            {
-                let area = BitMapBackend::new(&path, self.opts.size).into_drawing_area();
-                scene.paint(&area, &self.view, self.stress_max, t)?;
-                area.present().map_err(draw_err)?;
-            }
-            self.written.push(path);
+            self.write_key(&scene, t)?;
             // Skip key frames a long step jumped over.
             while due(self.keys_done, self.opts.key_frames) {
                 self.keys_done += 1;
@@ -273,6 +270,18 @@ impl Pictures {
                 self.gif_done += 1;
             }
         }
+        Ok(())
+    }
+
+    /// Write `scene` as the next key frame, `key_NN.png`.
+    fn write_key(&mut self, scene: &Snapshot, t: f64) -> Result<(), SimError> {
+        let path = self.dir.join(format!("key_{:02}.png", self.keys_done));
+        {
+            let area = BitMapBackend::new(&path, self.opts.size).into_drawing_area();
+            scene.paint(&area, &self.view, self.stress_max, t)?;
+            area.present().map_err(draw_err)?;
+        }
+        self.written.push(path);
         Ok(())
     }
 
@@ -302,13 +311,7 @@ impl Pictures {
         if self.opts.key_frames > 0 && self.keys_done < self.opts.key_frames {
             let scene = Snapshot::of(world, &self.view);
             self.stress_max = self.stress_max.max(scene.stress_max);
-            let path = self.dir.join(format!("key_{:02}.png", self.keys_done));
-            {
-                let area = BitMapBackend::new(&path, self.opts.size).into_drawing_area();
-                scene.paint(&area, &self.view, self.stress_max, world.time)?;
-                area.present().map_err(draw_err)?;
-            }
-            self.written.push(path);
+            self.write_key(&scene, world.time)?;
         }
         if let Some(area) = self.gif.take() {
             area.present().map_err(draw_err)?;
@@ -317,14 +320,22 @@ impl Pictures {
     }
 }
 
+/// `c` with every channel multiplied by `f` (≤ 1: darker).
+fn scaled(c: RGBColor, f: f64) -> RGBColor {
+    RGBColor(
+        (c.0 as f64 * f) as u8,
+        (c.1 as f64 * f) as u8,
+        (c.2 as f64 * f) as u8,
+    )
+}
+
 /// Something to paint, with its depth (3D painter's order).
 enum Prim {
-    /// Filled polygon with an optional edge colour; `stress` < 0 means grey (prescribed).
+    /// Filled polygon with its edges drawn darker; `stress` < 0 means grey (prescribed).
     Polygon {
         pts: Vec<(i32, i32)>,
         stress: f64,
         shade: f64,
-        edge: bool,
     },
     /// A particle.
     Dot { at: (i32, i32), stress: f64 },
@@ -390,7 +401,6 @@ impl Snapshot {
                             pts,
                             stress: s,
                             shade: 1.0,
-                            edge: true,
                         },
                     ));
                 }
@@ -420,7 +430,6 @@ impl Snapshot {
                             pts: p.iter().map(|q| view.pixel(q)).collect(),
                             stress: mean,
                             shade,
-                            edge: true,
                         },
                     ));
                 }
@@ -488,34 +497,18 @@ impl Snapshot {
                 };
                 ViridisRGB.get_color(u)
             };
-            RGBColor(
-                (c.0 as f64 * shade) as u8,
-                (c.1 as f64 * shade) as u8,
-                (c.2 as f64 * shade) as u8,
-            )
+            scaled(c, shade)
         };
         for (_, p) in &self.prims {
             match p {
-                Prim::Polygon {
-                    pts,
-                    stress,
-                    shade,
-                    edge: with_edge,
-                } => {
+                Prim::Polygon { pts, stress, shade } => {
                     let fill = colour(*stress, *shade);
                     area.draw(&Polygon::new(pts.clone(), fill.filled()))
                         .map_err(draw_err)?;
-                    if *with_edge {
-                        let edge = RGBColor(
-                            (fill.0 as f64 * 0.6) as u8,
-                            (fill.1 as f64 * 0.6) as u8,
-                            (fill.2 as f64 * 0.6) as u8,
-                        );
-                        let mut ring = pts.clone();
-                        ring.push(pts[0]);
-                        area.draw(&PathElement::new(ring, edge.stroke_width(1)))
-                            .map_err(draw_err)?;
-                    }
+                    let mut ring = pts.clone();
+                    ring.push(pts[0]);
+                    area.draw(&PathElement::new(ring, scaled(fill, 0.6).stroke_width(1)))
+                        .map_err(draw_err)?;
                 }
                 Prim::Dot { at, stress } => {
                     area.draw(&Circle::new(

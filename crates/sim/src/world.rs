@@ -740,16 +740,16 @@ pub fn inside_elements<const D: usize>(
     let (plo, phi) = points
         .iter()
         .fold((points[0], points[0]), |(l, h), p| (l.inf(p), h.sup(p)));
-    let reaches = |(lo, hi): &(SVector<f64, D>, SVector<f64, D>)| {
+    let reaches = |lo: &SVector<f64, D>, hi: &SVector<f64, D>| {
         (0..D).all(|k| lo[k] <= phi[k] && hi[k] >= plo[k])
     };
-    if !boxes.iter().any(reaches) {
+    if !boxes.iter().any(|(lo, hi)| reaches(lo, hi)) {
         return Vec::new();
     }
     let mut table: std::collections::HashMap<[i64; D], Vec<usize>> =
         std::collections::HashMap::new();
     for (e, (lo, hi)) in boxes.iter().enumerate() {
-        if !reaches(&(*lo, *hi)) {
+        if !reaches(lo, hi) {
             continue;
         }
         let a: [i64; D] = std::array::from_fn(|k| (lo[k] / cell).floor() as i64);

@@ -180,13 +180,11 @@ pub fn run(ctx: &Ctx) -> Result<Outcome> {
             Err(_) => 0,
         };
         if let Err(e) = &r {
-            out.checks.push(Check {
-                figure: format!("μ = {mu}: run reaches u_y = {duration} m"),
-                measured: format!("stopped at u_y = {reached:.2} m"),
-                expected: format!("{duration} m"),
-                tolerance: "—".into(),
-                status: Status::Fail,
-            });
+            out.checks.push(Check::stopped(
+                format!("μ = {mu}: run reaches u_y = {duration} m"),
+                format!("stopped at u_y = {reached:.2} m"),
+                format!("{duration} m"),
+            ));
             out.notes.push(format!("μ = {mu}: the run stopped: {e}"));
         } else {
             out.checks.push(Check::count(

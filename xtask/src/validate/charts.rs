@@ -2,7 +2,6 @@
 //! font libraries needed).
 
 use std::path::{Path, PathBuf};
-use std::sync::Once;
 
 use anyhow::{Context, Result};
 use plotters::coord::Shift;
@@ -54,18 +53,6 @@ pub struct Chart {
     pub y_label: String,
     /// Curves.
     pub series: Vec<Series>,
-}
-
-fn register_font() {
-    static ONCE: Once = Once::new();
-    ONCE.call_once(|| {
-        // The embedded DejaVu Sans stands in for the default family name plotters asks for.
-        for family in ["sans-serif", "serif"] {
-            let _ =
-                plotters::style::register_font(family, FontStyle::Normal, dejavu::sans::regular());
-            let _ = plotters::style::register_font(family, FontStyle::Bold, dejavu::sans::bold());
-        }
-    });
 }
 
 const PALETTE: [RGBColor; 6] = [
@@ -254,7 +241,7 @@ pub fn write(dir: &Path, chart: &Chart) -> Result<PathBuf> {
 
 /// [`write`] with log axes and/or point markers.
 pub fn write_styled(dir: &Path, chart: &Chart, style: Style) -> Result<PathBuf> {
-    register_font();
+    femp::render::register_fonts();
     std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
     let png = dir.join(format!("{}.png", chart.stem));
     let svg = dir.join(format!("{}.svg", chart.stem));

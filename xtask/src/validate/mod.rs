@@ -138,6 +138,17 @@ impl Check {
         }
     }
 
+    /// A run that should have reached `expected` but stopped at `measured`: always a failure.
+    pub fn stopped(figure: String, measured: String, expected: String) -> Self {
+        Self {
+            figure,
+            measured,
+            expected,
+            tolerance: "—".into(),
+            status: Status::Fail,
+        }
+    }
+
     /// A reported figure.
     pub fn info(figure: &str, measured: String, expected: String) -> Self {
         Self {
@@ -183,6 +194,54 @@ struct Pictured {
 /// Runs that get scene pictures in the report.
 const PICTURES: &[Pictured] = &[
     Pictured {
+        label: "rings_apic",
+        caption: "MPM ring (left) against FEM ring (right), APIC",
+        keys: 4,
+        last_only: false,
+        gif: true,
+        up: None,
+    },
+    Pictured {
+        label: "sine_fem",
+        caption: "FEM sine boundary (BFEMP)",
+        keys: 4,
+        last_only: false,
+        gif: false,
+        up: None,
+    },
+    Pictured {
+        label: "sine_level_set",
+        caption: "Level-set sine boundary",
+        keys: 4,
+        last_only: true,
+        gif: false,
+        up: None,
+    },
+    Pictured {
+        label: "hertz_linear_h0.05",
+        caption: "Brazilian disk, h = 0.05",
+        keys: 2,
+        last_only: true,
+        gif: false,
+        up: None,
+    },
+    Pictured {
+        label: "hertz_linear_h0.025",
+        caption: "Brazilian disk, h = 0.025",
+        keys: 2,
+        last_only: true,
+        gif: false,
+        up: None,
+    },
+    Pictured {
+        label: "slope_mu_0.1",
+        caption: "Box on the slope, μ = 0.1",
+        keys: 3,
+        last_only: false,
+        gif: false,
+        up: None,
+    },
+    Pictured {
         label: "buckling_mu0",
         caption: "μ = 0",
         keys: 3,
@@ -204,6 +263,14 @@ const PICTURES: &[Pictured] = &[
         keys: 2,
         last_only: true,
         gif: false,
+        up: None,
+    },
+    Pictured {
+        label: "blocks3d_apic_friction_h1",
+        caption: "APIC N = 1, h = 1",
+        keys: 3,
+        last_only: false,
+        gif: true,
         up: None,
     },
     Pictured {

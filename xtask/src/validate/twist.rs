@@ -85,16 +85,14 @@ pub fn run(ctx: &Ctx) -> Result<Outcome> {
         let r = match r {
             Ok(r) => r,
             Err(e) => {
-                out.checks.push(Check {
-                    figure: format!("μ = {mu}: run reaches t = {duration} s"),
-                    measured: format!(
+                out.checks.push(Check::stopped(
+                    format!("μ = {mu}: run reaches t = {duration} s"),
+                    format!(
                         "stopped at t = {:.2} s",
                         samples.last().map_or(0.0, |s| s.0)
                     ),
-                    expected: format!("{duration} s"),
-                    tolerance: "—".into(),
-                    status: Status::Fail,
-                });
+                    format!("{duration} s"),
+                ));
                 out.notes.push(format!("μ = {mu}: the run stopped: {e}"));
                 continue;
             }
