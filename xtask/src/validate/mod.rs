@@ -30,7 +30,8 @@ use femp::metrics::Metrics;
 use femp::run::{RunOptions, RunResult, run_with};
 
 /// Resolution tier.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "lowercase")]
 pub enum Tier {
     /// Coarse, minutes (CI).
     Quick,
@@ -48,7 +49,7 @@ impl Tier {
 }
 
 /// Outcome of one check.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 pub enum Status {
     /// Within tolerance.
     Pass,
@@ -69,7 +70,7 @@ impl Status {
 }
 
 /// One row of the table.
-#[derive(Clone, Debug)]
+#[derive(Clone, Debug, serde::Serialize, serde::Deserialize)]
 pub struct Check {
     /// What is measured.
     pub figure: String,
@@ -162,7 +163,7 @@ impl Check {
 }
 
 /// What one experiment produced.
-#[derive(Debug, Default)]
+#[derive(Debug, Default, serde::Serialize, serde::Deserialize)]
 pub struct Outcome {
     /// Rows of the table.
     pub checks: Vec<Check>,
@@ -296,7 +297,7 @@ struct Experiment {
     name: &'static str,
     section: &'static str,
     title: &'static str,
-    run: Option<fn(&Ctx) -> Result<Outcome>>,
+    run: fn(&Ctx) -> Result<Outcome>,
 }
 
 /// Everything an experiment needs.
@@ -451,73 +452,73 @@ const EXPERIMENTS: &[Experiment] = &[
         name: "rings",
         section: "BFEMP 6.1",
         title: "MPM ring vs FEM ring at 40 m/s: momentum, energy, non-penetration",
-        run: Some(rings::run),
+        run: rings::run,
     },
     Experiment {
         name: "sine_boundary",
         section: "BFEMP 6.2",
         title: "FEM sine-wave boundary vs level-set slip boundary",
-        run: Some(sine::run),
+        run: sine::run,
     },
     Experiment {
         name: "hertz",
         section: "BFEMP 6.3",
         title: "Brazilian disk: force vs contact radius against 2D Hertz",
-        run: Some(hertz::run),
+        run: hertz::run,
     },
     Experiment {
         name: "slope",
         section: "BFEMP 6.4",
         title: "Stiff MPM box on a frictional FEM slope: g(sinθ − μcosθ), sticking at μ = tanθ",
-        run: Some(slope::run),
+        run: slope::run,
     },
     Experiment {
         name: "refinement",
         section: "BFEMP 6.5",
         title: "MPM box on FEM box under refinement: convergence order",
-        run: Some(refinement::run),
+        run: refinement::run,
     },
     Experiment {
         name: "buckling",
         section: "BFEMP 6.6",
         title: "Semicircular rings compressed: buckling order vs μ",
-        run: Some(buckling::run),
+        run: buckling::run,
     },
     Experiment {
         name: "twist",
         section: "BFEMP 6.7",
         title: "3D shell twisting an MPM cube: slip angles vs μ",
-        run: Some(twist::run),
+        run: twist::run,
     },
     Experiment {
         name: "two_particles",
         section: "augury 3.1",
         title: "Two particles in one cell, APIC vs PIC",
-        run: Some(augury::two_particles),
+        run: augury::two_particles,
     },
     Experiment {
         name: "blocks_impact",
         section: "augury 3.2",
         title: "Two blocks impacting at an angle: exact momenta",
-        run: Some(augury::blocks_impact),
+        run: augury::blocks_impact,
     },
     Experiment {
         name: "ramp",
         section: "augury 3.3",
         title: "Block sliding down a 30° ramp",
-        run: Some(augury::ramp_experiment),
+        run: augury::ramp_experiment,
     },
     Experiment {
         name: "compare",
         section: "both papers",
         title: "Speed vs accuracy: block sliding down a ramp, BFEMP / augury / penalty",
-        run: Some(compare::run),
+        run: compare::run,
     },
     Experiment {
         name: "stability",
         section: "both papers",
         title: "Stability maps: time step against impact speed",
-        run: Some(stability::run),
+        run: stability::run,
     },
 ];
 
@@ -526,31 +527,163 @@ pub struct Done {
     name: &'static str,
     section: &'static str,
     title: &'static str,
+    /// The experiment's wall time.
     wall_s: f64,
+    /// What it produced; `None`: not run in this tier yet.
+    outcome: Option<Result<Outcome, String>>,
+    /// When it finished (`2026-12-01 19:04 UTC`).
+    finished: String,
+    /// The commit of the code that ran it.
+    commit: String,
+    /// Run by this invocation (not loaded from a saved outcome).
+    fresh: bool,
+}
+
+/// An experiment's outcome as saved in `OUT/NAME/outcome.json`, so that a long tier can be run
+/// an experiment at a time (`--only`) and its report assembled from every saved outcome.
+#[derive(serde::Serialize, serde::Deserialize)]
+struct Saved {
+    tier: Tier,
+    wall_s: f64,
+    /// Seconds since 1970-01-01 UTC when the experiment finished.
+    finished_unix: u64,
+    /// `git describe --always --dirty` of the code that ran it.
+    commit: String,
+    /// Paths are relative to the output directory.
     outcome: Result<Outcome, String>,
-    implemented: bool,
+}
+
+/// Save `outcome` of experiment `name` under `out` (paths made relative to `out`).
+fn save(
+    commit: &str,
+    out: &Path,
+    name: &str,
+    tier: Tier,
+    wall_s: f64,
+    outcome: &Result<Outcome, String>,
+) -> Result<Saved> {
+    let rel = |p: &PathBuf| {
+        p.strip_prefix(out)
+            .map_or_else(|_| p.clone(), Path::to_path_buf)
+    };
+    let outcome = match outcome {
+        Err(e) => Err(e.clone()),
+        Ok(o) => Ok(Outcome {
+            checks: o.checks.clone(),
+            charts: o.charts.iter().map(|(c, p)| (c.clone(), rel(p))).collect(),
+            notes: o.notes.clone(),
+            pictures: o
+                .pictures
+                .iter()
+                .map(|(c, fs)| (c.clone(), fs.iter().map(rel).collect()))
+                .collect(),
+        }),
+    };
+    let saved = Saved {
+        tier,
+        wall_s,
+        finished_unix: std::time::SystemTime::now()
+            .duration_since(std::time::UNIX_EPOCH)
+            .map_or(0, |d| d.as_secs()),
+        commit: commit.to_string(),
+        outcome,
+    };
+    let path = out.join(name).join("outcome.json");
+    std::fs::create_dir_all(out.join(name))?;
+    std::fs::write(&path, serde_json::to_string_pretty(&saved)?)
+        .with_context(|| format!("writing {}", path.display()))?;
+    Ok(saved)
+}
+
+/// The saved outcome of experiment `name` under `out`, if there is one of this tier (paths
+/// joined back onto `out`); an unreadable file is an error naming it.
+fn load(out: &Path, name: &str, tier: Tier) -> Result<Option<Saved>> {
+    let path = out.join(name).join("outcome.json");
+    if !path.exists() {
+        return Ok(None);
+    }
+    let text =
+        std::fs::read_to_string(&path).with_context(|| format!("reading {}", path.display()))?;
+    let mut saved: Saved = serde_json::from_str(&text).with_context(|| {
+        format!(
+            "{}: not a saved outcome (re-run the experiment)",
+            path.display()
+        )
+    })?;
+    if saved.tier != tier {
+        return Ok(None);
+    }
+    if let Ok(o) = &mut saved.outcome {
+        for (_, p) in &mut o.charts {
+            *p = out.join(&*p);
+        }
+        for (_, fs) in &mut o.pictures {
+            for p in fs {
+                *p = out.join(&*p);
+            }
+        }
+    }
+    Ok(Some(saved))
+}
+
+/// `git describe --always --dirty`, or `unknown commit` outside a work tree.
+fn git_describe() -> String {
+    std::process::Command::new("git")
+        .args(["describe", "--always", "--dirty"])
+        .current_dir(workspace_root())
+        .output()
+        .ok()
+        .filter(|o| o.status.success())
+        .and_then(|o| String::from_utf8(o.stdout).ok())
+        .map_or_else(|| "unknown commit".into(), |s| s.trim().to_string())
+}
+
+/// `YYYY-MM-DD HH:MM UTC` of a Unix time (civil-from-days, proleptic Gregorian calendar).
+fn utc_minute(unix: u64) -> String {
+    let days = (unix / 86_400) as i64;
+    let secs = unix % 86_400;
+    let z = days + 719_468;
+    let era = z.div_euclid(146_097);
+    let doe = z - era * 146_097;
+    let yoe = (doe - doe / 1460 + doe / 36_524 - doe / 146_096) / 365;
+    let doy = doe - (365 * yoe + yoe / 4 - yoe / 100);
+    let mp = (5 * doy + 2) / 153;
+    let d = doy - (153 * mp + 2) / 5 + 1;
+    let m = if mp < 10 { mp + 3 } else { mp - 9 };
+    let y = yoe + era * 400 + i64::from(m <= 2);
+    format!(
+        "{y:04}-{m:02}-{d:02} {:02}:{:02} UTC",
+        secs / 3600,
+        (secs % 3600) / 60
+    )
 }
 
 const USAGE: &str =
-    "usage: cargo xtask validate [--quick | --full] [--only NAME…] [--out DIR] [--publish]
+    "usage: cargo xtask validate [--quick | --full] [--only NAME…] [--report] [--out DIR] \
+     [--publish]
 
   --quick    coarse resolutions, minutes (default)
-  --full     the papers' parameters; with no --only, rewrites docs/validation/
-  --only     run only these experiments
+  --full     the papers' parameters (hours); with no --only, publishes to docs/validation/full/
+  --only     run only these experiments; the report also shows every other experiment's saved
+             outcome in the output directory (so a long tier can be run a piece at a time)
+  --report   run nothing: assemble the report from the saved outcomes
   --out      output directory (default target/validation/<tier>)
-  --publish  copy the report and charts into docs/validation/ whatever the tier";
+  --publish  copy the report and what it shows into docs/validation/ (quick) or
+             docs/validation/full/ (full)";
 
 /// Entry point: parse `args` (after `validate`), run, print, report.
 pub fn main(args: &[String]) -> Result<()> {
     let mut tier = Tier::Quick;
     let mut only: Vec<String> = Vec::new();
     let mut publish = false;
+    let mut report_only = false;
     let mut out: Option<PathBuf> = None;
     let mut it = args.iter().peekable();
     while let Some(a) = it.next() {
         match a.as_str() {
             "--quick" => tier = Tier::Quick,
             "--publish" => publish = true,
+            "--report" => report_only = true,
             "--full" => tier = Tier::Full,
             "--out" => match it.next() {
                 Some(d) => out = Some(PathBuf::from(d)),
@@ -567,17 +700,15 @@ pub fn main(args: &[String]) -> Result<()> {
             "-h" | "--help" => {
                 println!("{USAGE}\n\nexperiments:");
                 for e in EXPERIMENTS {
-                    let mark = if e.run.is_some() {
-                        ""
-                    } else {
-                        " (not implemented yet)"
-                    };
-                    println!("  {:14} {:11} {}{mark}", e.name, e.section, e.title);
+                    println!("  {:14} {:11} {}", e.name, e.section, e.title);
                 }
                 return Ok(());
             }
             other => bail!("unknown argument `{other}`\n{USAGE}"),
         }
+    }
+    if report_only && !only.is_empty() {
+        bail!("--report runs nothing; it cannot be combined with --only\n{USAGE}");
     }
     for n in &only {
         if !EXPERIMENTS.iter().any(|e| e.name == n) {
@@ -586,26 +717,34 @@ pub fn main(args: &[String]) -> Result<()> {
         }
     }
     let root = workspace_root();
+    // The code that runs is the code at start (the tree may change during a long run).
+    let commit = git_describe();
     let out = out.unwrap_or_else(|| root.join("target/validation").join(tier.name()));
     std::fs::create_dir_all(&out)?;
     let progress = indicatif::MultiProgress::new();
     let started = Instant::now();
     let mut done = Vec::new();
+    let mut ran = 0;
     for e in EXPERIMENTS {
-        if !only.is_empty() && !only.iter().any(|n| n == e.name) {
-            continue;
-        }
-        let Some(run) = e.run else {
+        let selected = !report_only && (only.is_empty() || only.iter().any(|n| n == e.name));
+        if !selected {
+            let saved = load(&out, e.name, tier)?;
             done.push(Done {
                 name: e.name,
                 section: e.section,
                 title: e.title,
-                wall_s: 0.0,
-                outcome: Ok(Outcome::default()),
-                implemented: false,
+                wall_s: saved.as_ref().map_or(0.0, |s| s.wall_s),
+                finished: saved
+                    .as_ref()
+                    .map_or_else(String::new, |s| utc_minute(s.finished_unix)),
+                commit: saved
+                    .as_ref()
+                    .map_or_else(String::new, |s| s.commit.clone()),
+                outcome: saved.map(|s| s.outcome),
+                fresh: false,
             });
             continue;
-        };
+        }
         let _ = progress.println(format!("{} ({}): {}", e.name, e.section, e.title));
         let ctx = Ctx {
             tier,
@@ -616,34 +755,46 @@ pub fn main(args: &[String]) -> Result<()> {
             pictured: Default::default(),
         };
         let t = Instant::now();
-        let outcome = run(&ctx)
+        let outcome = (e.run)(&ctx)
             .and_then(|mut o| {
                 ctx.collect_pictures(&mut o)?;
                 Ok(o)
             })
             .map_err(|err| format!("{err:#}"));
+        let wall_s = t.elapsed().as_secs_f64();
+        let saved = save(&commit, &out, e.name, tier, wall_s, &outcome)?;
         let d = Done {
             name: e.name,
             section: e.section,
             title: e.title,
-            wall_s: t.elapsed().as_secs_f64(),
-            outcome,
-            implemented: true,
+            wall_s,
+            outcome: Some(outcome),
+            finished: utc_minute(saved.finished_unix),
+            commit: saved.commit,
+            fresh: true,
         };
         let _ = progress.println(report::rows(&d).join("\n"));
         done.push(d);
+        ran += 1;
     }
     let total = started.elapsed().as_secs_f64();
     println!("\n{}", report::table(&done));
-    let failed = report::failures(&done);
-    report::write(&out, tier, &done, total)?;
+    // The exit code answers for what this invocation ran (for `--report`, for everything).
+    let failed = report::failures(done.iter().filter(|d| d.fresh || report_only));
+    report::write(&out, tier, &done)?;
     println!("report: {}", out.join("README.md").display());
-    if (tier == Tier::Full && only.is_empty()) || publish {
-        let docs = root.join("docs/validation");
+    if (tier == Tier::Full && only.is_empty() && !report_only) || publish {
+        let docs = match tier {
+            Tier::Quick => root.join("docs/validation"),
+            Tier::Full => root.join("docs/validation/full"),
+        };
         report::publish(&out, &docs)?;
         println!("published to {}", docs.display());
     }
-    println!("total wall time {total:.1} s ({} tier)", tier.name());
+    println!(
+        "{ran} experiment(s) run, total wall time {total:.1} s ({} tier)",
+        tier.name()
+    );
     if failed > 0 {
         bail!("{failed} check(s) failed");
     }
