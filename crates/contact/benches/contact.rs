@@ -1,6 +1,7 @@
 //! Contact hot paths:
 //! (a) barrier potential + gradient + PSD Hessian for 10⁵ particles near a boundary of ~10⁴
-//!     edges (2D) or triangles (3D), including the broad phase, 1 and 2 threads;
+//!     edges (2D) or triangles (3D), including the broad phase, 1 and 2 threads, with the
+//!     projected Hessian and (`…_gauss_newton`) the Gauss–Newton one;
 //! (b) CCD time per query on the 3,085 vertex–face queries of the Wang et al. 2021 benchmark.
 //!
 //! The scenes are deterministic formulas (no RNG), reproduced exactly by
@@ -11,7 +12,9 @@
 use criterion::{BenchmarkId, Criterion, Throughput, criterion_group, criterion_main};
 use femp_contact::broad_phase::{self, Candidates};
 use femp_contact::ccd::{self, CcdOptions};
-use femp_contact::{BoundaryTopology, ContactPotential, LogBarrier, particle_weight};
+use femp_contact::{
+    BarrierHessian, BoundaryTopology, ContactPotential, LogBarrier, particle_weight,
+};
 use nalgebra::Vector3;
 use std::hint::black_box;
 
@@ -28,16 +31,21 @@ fn bench_potential<const D: usize>(c: &mut Criterion, name: &str, (v, f, p): sce
     let mut group = c.benchmark_group(format!("barrier_{name}"));
     group.sample_size(10);
     group.throughput(Throughput::Elements(p.len() as u64));
-    for threads in [1usize, 2] {
-        let pool = rayon::ThreadPoolBuilder::new()
-            .num_threads(threads)
-            .build()
-            .unwrap();
-        let (mut cands, mut terms, mut ders) = (Candidates::default(), Vec::new(), Vec::new());
-        group.bench_with_input(
-            BenchmarkId::new("broad+energy+grad+hess", threads),
-            &threads,
-            |b, _| {
+    for (id, hessian) in [
+        ("broad+energy+grad+hess", BarrierHessian::Projected),
+        (
+            "broad+energy+grad+hess_gauss_newton",
+            BarrierHessian::GaussNewton,
+        ),
+    ] {
+        let pot = pot.clone().with_hessian(hessian);
+        for threads in [1usize, 2] {
+            let pool = rayon::ThreadPoolBuilder::new()
+                .num_threads(threads)
+                .build()
+                .unwrap();
+            let (mut cands, mut terms, mut ders) = (Candidates::default(), Vec::new(), Vec::new());
+            group.bench_with_input(BenchmarkId::new(id, threads), &threads, |b, _| {
                 b.iter(|| {
                     pool.install(|| {
                         broad_phase::candidates_within(
@@ -53,8 +61,8 @@ fn bench_potential<const D: usize>(c: &mut Criterion, name: &str, (v, f, p): sce
                         black_box((e, ders.len()))
                     })
                 })
-            },
-        );
+            });
+        }
     }
     group.finish();
 }

@@ -43,8 +43,8 @@ mod potential;
 pub use barrier::LogBarrier;
 pub use error::ContactError;
 pub use potential::{
-    BoundaryTopology, ContactPotential, ContactTerm, Feature, TermDerivatives, particle_weight,
-    project_psd,
+    BarrierHessian, BoundaryTopology, ContactPotential, ContactTerm, Feature, TermDerivatives,
+    particle_weight, project_psd,
 };
 
 pub(crate) fn check_len(

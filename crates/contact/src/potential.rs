@@ -17,8 +17,10 @@
 //! region. So every term is first reduced to its closest feature (vertex, edge interior, face
 //! interior) and coefficients of equal features are summed. On a closed 2D polyline, a particle
 //! nearest to a vertex gets `(+1 +1 −1) = 1` term with that vertex. Each remaining term's Hessian
-//! is projected to PSD on its small stencil (2–4 points): since equal distance functions were
-//! merged first, projecting term by term loses nothing where the duplicates cancel.
+//! is made PSD on its small stencil (2–4 points), by default by clipping the exact Hessian's
+//! negative eigenvalues, optionally as `ω b''(d) ∇d∇dᵀ` (Gauss–Newton in the distance,
+//! [`BarrierHessian`]); since equal distance functions were merged first, doing so term by
+//! term loses nothing where the duplicates cancel.
 //!
 //! **Units.** `κ` in Pa, `d` in m, `ω_q` in m (2D, per unit thickness) or m² (3D): `κ ω b` is an
 //! energy (per unit thickness in 2D), as required inside `2αβΔt²(Ψ + B + D)`.
@@ -196,6 +198,25 @@ pub struct TermDerivatives<const D: usize> {
     pub hess: [[SMatrix<f64, D, D>; 4]; 4],
 }
 
+/// Which PSD Hessian [`ContactPotential::derivatives`] gives for a term `ω b(d(x))`.
+///
+/// The exact Hessian is `ω [b''(d) ∇d ∇dᵀ + b'(d) ∇²d]`. Its first part is PSD (`b'' > 0`); the
+/// second is not (`b' < 0`, and `∇²d` is indefinite when the facet can move and turn).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum BarrierHessian {
+    /// The exact Hessian with its negative eigenvalues set to zero on the term's stencil (the
+    /// IPC default, and ours). Clipping adds curvature that the energy does not have, mostly
+    /// tangential to the facet, so Newton converges linearly while particles slide along it.
+    #[default]
+    Projected,
+    /// `ω b''(d) ∇d ∇dᵀ` (Gauss–Newton in the distance): rank one, PSD by construction, no
+    /// eigensolver; exact for a point against a fixed flat facet. It drops the distance's
+    /// curvature: half the Newton iterations of `Projected` on the §6.7 twist (particles sliding
+    /// under a stiff shell), but on the §6.1 rings and the §6.2 sine boundary some steps then
+    /// oscillate between features and miss the iteration limit (`docs/performance.md`).
+    GaussNewton,
+}
+
 /// The contact potential: barrier plus boundary topology.
 #[derive(Clone, Debug)]
 pub struct ContactPotential<const D: usize> {
@@ -203,6 +224,8 @@ pub struct ContactPotential<const D: usize> {
     pub barrier: LogBarrier,
     /// The boundary.
     pub topology: BoundaryTopology<D>,
+    /// The Hessian approximation (default: projected).
+    pub hessian: BarrierHessian,
 }
 
 /// Squared distance and canonical feature of a particle against one facet.
@@ -286,7 +309,17 @@ impl Scratch {
 impl<const D: usize> ContactPotential<D> {
     /// A potential for the given barrier and boundary.
     pub fn new(barrier: LogBarrier, topology: BoundaryTopology<D>) -> Self {
-        Self { barrier, topology }
+        Self {
+            barrier,
+            topology,
+            hessian: BarrierHessian::default(),
+        }
+    }
+
+    /// The same potential with Hessian approximation `hessian`.
+    pub fn with_hessian(mut self, hessian: BarrierHessian) -> Self {
+        self.hessian = hessian;
+        self
     }
 
     /// Collect the active terms (`d < d̂`) of every particle from its candidate facets, into
@@ -419,16 +452,28 @@ impl<const D: usize> ContactPotential<D> {
         feature: Feature,
         boundary: &[SVector<f64, D>],
     ) -> (f64, Blocks<D>, BlockMatrix<D>) {
+        Self::feature_sq_dist_with(p, feature, boundary, true)
+    }
+
+    /// [`Self::feature_sq_dist`], the Hessian left zero unless `hessian`.
+    fn feature_sq_dist_with(
+        p: &SVector<f64, D>,
+        feature: Feature,
+        boundary: &[SVector<f64, D>],
+        hessian: bool,
+    ) -> (f64, Blocks<D>, BlockMatrix<D>) {
         let mut g = [SVector::zeros(); 4];
         let mut h = [[SMatrix::zeros(); 4]; 4];
         match feature {
             Feature::Vertex(a) => {
                 let q = &boundary[a as usize];
                 let gg = point_point::sq_dist_grad(p, q);
-                let hh = point_point::sq_dist_hess::<D>();
                 g[..2].copy_from_slice(&gg);
-                for i in 0..2 {
-                    h[i][..2].copy_from_slice(&hh[i]);
+                if hessian {
+                    let hh = point_point::sq_dist_hess::<D>();
+                    for i in 0..2 {
+                        h[i][..2].copy_from_slice(&hh[i]);
+                    }
                 }
                 (point_point::sq_dist(p, q), g, h)
             }
@@ -436,10 +481,12 @@ impl<const D: usize> ContactPotential<D> {
                 let (xa, xb) = (&boundary[a as usize], &boundary[b as usize]);
                 let r = PointEdgeRegion::Interior;
                 let gg = point_edge::sq_dist_grad_in(r, p, xa, xb);
-                let hh = point_edge::sq_dist_hess_in(r, p, xa, xb);
                 g[..3].copy_from_slice(&gg);
-                for i in 0..3 {
-                    h[i][..3].copy_from_slice(&hh[i]);
+                if hessian {
+                    let hh = point_edge::sq_dist_hess_in(r, p, xa, xb);
+                    for i in 0..3 {
+                        h[i][..3].copy_from_slice(&hh[i]);
+                    }
                 }
                 (point_edge::sq_dist_in(r, p, xa, xb), g, h)
             }
@@ -452,11 +499,15 @@ impl<const D: usize> ContactPotential<D> {
                 );
                 let r = PointTriangleRegion::Face;
                 let gg = point_triangle::sq_dist_grad_in(r, &p3, &xa, &xb, &xc);
-                let hh = point_triangle::sq_dist_hess_in(r, &p3, &xa, &xb, &xc);
                 for i in 0..4 {
                     g[i] = from3(&gg[i]);
-                    for j in 0..4 {
-                        h[i][j] = SMatrix::from_fn(|r, c| hh[i][j][(r, c)]);
+                }
+                if hessian {
+                    let hh = point_triangle::sq_dist_hess_in(r, &p3, &xa, &xb, &xc);
+                    for i in 0..4 {
+                        for j in 0..4 {
+                            h[i][j] = SMatrix::from_fn(|r, c| hh[i][j][(r, c)]);
+                        }
                     }
                 }
                 (point_triangle::sq_dist_in(r, &p3, &xa, &xb, &xc), g, h)
@@ -464,7 +515,8 @@ impl<const D: usize> ContactPotential<D> {
         }
     }
 
-    /// Gradient and PSD-projected Hessian of every term, in parallel, into `out` (cleared).
+    /// Gradient and PSD Hessian (see [`BarrierHessian`]) of every term, in parallel, into `out`
+    /// (cleared).
     pub fn derivatives(
         &self,
         terms: &[ContactTerm],
@@ -477,7 +529,8 @@ impl<const D: usize> ContactPotential<D> {
             .with_min_len(256)
             .map(|t| {
                 let p = &particles[t.particle as usize];
-                let (s, gs, hs) = Self::feature_sq_dist(p, t.feature, boundary);
+                let exact = self.hessian == BarrierHessian::Projected;
+                let (s, gs, hs) = Self::feature_sq_dist_with(p, t.feature, boundary, exact);
                 let (_, bs, bss) = self.barrier.sq_derivatives(s);
                 let (vertices, nv) = t.feature.vertices();
                 let n = nv + 1;
@@ -490,11 +543,28 @@ impl<const D: usize> ContactPotential<D> {
                 };
                 for i in 0..n {
                     d.grad[i] = gs[i] * (t.weight * bs);
-                    for j in 0..n {
-                        d.hess[i][j] = (gs[i] * gs[j].transpose() * bss + hs[i][j] * bs) * t.weight;
+                }
+                match self.hessian {
+                    BarrierHessian::GaussNewton => {
+                        // b''(d) ∇d ∇dᵀ with ∇d = ∇s / (2d): b''(d) / (4s) ∇s ∇sᵀ, weighted.
+                        let b2 = self.barrier.second(s.sqrt());
+                        let c = (b2 / (4.0 * s) * t.weight).max(0.0);
+                        for i in 0..n {
+                            for j in 0..n {
+                                d.hess[i][j] = gs[i] * gs[j].transpose() * c;
+                            }
+                        }
+                    }
+                    BarrierHessian::Projected => {
+                        for i in 0..n {
+                            for j in 0..n {
+                                d.hess[i][j] =
+                                    (gs[i] * gs[j].transpose() * bss + hs[i][j] * bs) * t.weight;
+                            }
+                        }
+                        project_psd(&mut d.hess, n * D);
                     }
                 }
-                project_psd(&mut d.hess, n * D);
                 d
             })
             .collect_into_vec(out);

@@ -7,7 +7,8 @@ use femp_contact::broad_phase::{self, Candidates};
 use femp_contact::ccd::{self, CcdOptions};
 use femp_contact::friction::{self, FrictionParams};
 use femp_contact::{
-    BoundaryTopology, ContactError, ContactPotential, LogBarrier, TermDerivatives, particle_weight,
+    BarrierHessian, BoundaryTopology, ContactError, ContactPotential, LogBarrier, TermDerivatives,
+    particle_weight,
 };
 use nalgebra::{DMatrix, DVector, SVector, Vector2, Vector3};
 
@@ -169,15 +170,16 @@ fn accumulate<const D: usize>(
 }
 
 /// Gradient of the whole potential (particles and boundary vertices) against finite
-/// differences; Hessian PSD and symmetric; equal to the finite-difference Hessian where the
-/// exact one is PSD (a single face term far inside its region).
+/// differences; projected Hessian PSD and symmetric; equal to the finite-difference Hessian
+/// where the exact one is PSD (a single face term far inside its region).
 #[test]
 fn potential_gradient_and_hessian() {
     let (v, f) = cube();
     let pot = ContactPotential::new(
         LogBarrier::new(0.1, 1e2).unwrap(),
         BoundaryTopology::<3>::new(&f, 8).unwrap(),
-    );
+    )
+    .with_hessian(BarrierHessian::Projected);
     let particles = vec![
         Vector3::new(0.4, 0.55, 1.03),
         Vector3::new(1.04, 0.97, 0.5),
@@ -245,6 +247,109 @@ fn potential_gradient_and_hessian() {
         assert!(h1.clone().symmetric_eigen().eigenvalues.min() >= -1e-9 * h1.amax());
     }
     assert!(g1.norm() > 0.0);
+}
+
+/// Gauss–Newton Hessian of particles near vertices, edges and faces (2D and 3D, boundary
+/// vertices free): PSD, and equal to the exact Hessian minus `Σ_t ω_t b'(d_t) ∇²d_t`, both the
+/// exact Hessian and each distance's Hessian by finite differences.
+fn check_gauss_newton<const D: usize>(
+    pot: &ContactPotential<D>,
+    particles: &[SVector<f64, D>],
+    v: &[SVector<f64, D>],
+) {
+    let (np, nb) = (particles.len(), v.len());
+    let w: Vec<f64> = (0..np).map(|k| 0.2 + 0.1 * k as f64).collect();
+    let mut c = Candidates::default();
+    broad_phase::candidates_within(particles, v, pot.topology.facets(), 0.1, &mut c);
+    let mut terms = Vec::new();
+    pot.collect_terms(particles, &w, v, &c, &mut terms).unwrap();
+    assert!(terms.len() >= np, "every particle is within d̂");
+    let mut d = Vec::new();
+    pot.derivatives(&terms, particles, v, &mut d);
+    let (_, h) = accumulate(&d, np, nb);
+    assert!((&h - h.transpose()).amax() <= 1e-12 * h.amax());
+    assert!(h.clone().symmetric_eigen().eigenvalues.min() >= -1e-9 * h.amax());
+    let x0 = pack(particles, v);
+    let unpack = |x: &DVector<f64>| -> Vec<SVector<f64, D>> {
+        x.as_slice()
+            .chunks(D)
+            .map(SVector::<f64, D>::from_column_slice)
+            .collect()
+    };
+    let grad = |x: &DVector<f64>| {
+        let all = unpack(x);
+        let mut dd = Vec::new();
+        pot.derivatives(&terms, &all[..np], &all[np..], &mut dd);
+        accumulate(&dd, np, nb).0
+    };
+    let hfd = femp_testkit::fd_jacobian(grad, &x0, 1e-7);
+    let exact = (&hfd + hfd.transpose()) * 0.5;
+    // Σ_t ω_t b'(d_t) ∇²d_t, with ∇d_t = ∇s_t / (2 d_t) differentiated numerically.
+    let n = (np + nb) * D;
+    let mut curvature = DMatrix::<f64>::zeros(n, n);
+    for t in &terms {
+        let grad_d = |x: &DVector<f64>| {
+            let all = unpack(x);
+            let (s, gs, _) = ContactPotential::<D>::feature_sq_dist(
+                &all[t.particle as usize],
+                t.feature,
+                &all[np..],
+            );
+            let mut out = DVector::zeros(n);
+            let (verts, nv) = t.feature.vertices();
+            for i in 0..=nv {
+                let node = if i == 0 {
+                    t.particle as usize
+                } else {
+                    np + verts[i - 1] as usize
+                };
+                for a in 0..D {
+                    out[node * D + a] += gs[i][a] / (2.0 * s.sqrt());
+                }
+            }
+            out
+        };
+        let hd = femp_testkit::fd_jacobian(grad_d, &x0, 1e-7);
+        let b1 = pot.barrier.first(t.sq_dist.sqrt());
+        curvature += (&hd + hd.transpose()) * (0.5 * t.weight * b1);
+    }
+    let expected = &exact - &curvature;
+    let scale = exact.amax().max(h.amax());
+    assert!(
+        (&h - &expected).amax() <= 1e-5 * scale,
+        "Gauss–Newton Hessian differs from exact − b'∇²d by {:.3e} (scale {scale:.3e})",
+        (&h - &expected).amax()
+    );
+    // Not vacuous: the distance curvature matters at these points.
+    assert!(curvature.amax() > 1e-3 * scale);
+}
+
+#[test]
+fn gauss_newton_hessian_is_the_exact_one_without_the_distance_curvature() {
+    let (v, f) = square();
+    let pot = ContactPotential::new(
+        LogBarrier::new(0.1, 1e2).unwrap(),
+        BoundaryTopology::<2>::new(&f, 4).unwrap(),
+    )
+    .with_hessian(BarrierHessian::GaussNewton);
+    let near_2d = [
+        Vector2::new(1.03, 1.04),  // vertex region
+        Vector2::new(0.3, 1.05),   // edge interior
+        Vector2::new(-1.02, 0.41), // edge interior, another side
+    ];
+    check_gauss_newton(&pot, &near_2d, &v);
+    let (v, f) = cube();
+    let pot = ContactPotential::new(
+        LogBarrier::new(0.1, 1e2).unwrap(),
+        BoundaryTopology::<3>::new(&f, 8).unwrap(),
+    )
+    .with_hessian(BarrierHessian::GaussNewton);
+    let near_3d = [
+        Vector3::new(-0.02, -0.03, 1.05), // vertex region
+        Vector3::new(1.04, 0.97, 0.5),    // edge region
+        Vector3::new(0.4, 0.55, 1.03),    // face interior
+    ];
+    check_gauss_newton(&pot, &near_3d, &v);
 }
 
 #[test]

@@ -2,7 +2,9 @@
 //! contact pairs and level-set boundaries.
 
 use femp_contact::friction::FrictionParams;
-use femp_contact::{BoundaryTopology, ContactPotential, LogBarrier, particle_weight};
+use femp_contact::{
+    BarrierHessian, BoundaryTopology, ContactPotential, LogBarrier, particle_weight,
+};
 use femp_fem::{Boundary, ElasticBody, LinearElastic, Material, Mesh, NeoHookean, lumped_masses};
 use femp_kernels::{Grid, Kernel, Stencils};
 use femp_solver::{Integrator, Newton};
@@ -13,8 +15,8 @@ use crate::build::{fem_mesh, inside_simplex, sample_shape, transform_fn};
 use crate::error::{SimError, invalid};
 use crate::motion::{Motion, angular_components};
 use crate::scene::{
-    BodySpec, BoundaryCondition, BoundaryShape, IntegratorSpec, MaterialSpec, ModelSpec, Scene,
-    TransferSpec, VertexSelector,
+    BarrierHessianSpec, BodySpec, BoundaryCondition, BoundaryShape, IntegratorSpec, MaterialSpec,
+    ModelSpec, Scene, TransferSpec, VertexSelector,
 };
 
 /// Which particle–grid transfer MPM uses.
@@ -504,7 +506,12 @@ impl<const D: usize> World<D> {
                             names,
                             points,
                             facets_of,
-                            potential: ContactPotential::new(barrier, topo),
+                            potential: ContactPotential::new(barrier, topo).with_hessian(
+                                match c.hessian {
+                                    BarrierHessianSpec::GaussNewton => BarrierHessian::GaussNewton,
+                                    BarrierHessianSpec::Projected => BarrierHessian::Projected,
+                                },
+                            ),
                             friction,
                         });
                         Ok(())

@@ -74,6 +74,13 @@ fn unknown_fields_are_named_with_their_path() {
     let mut v = base();
     v["bodies"][0]["kind"] = json!("spring");
     expect_error(&v, &["bodies[0].kind", "spring", "`mpm` or `fem`"]);
+
+    let mut v = base();
+    v["contact"]["hessian"] = json!("exact");
+    expect_error(
+        &v,
+        &["contact.hessian", "exact", "`projected` or `gauss_newton`"],
+    );
 }
 
 #[test]

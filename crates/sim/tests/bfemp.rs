@@ -26,6 +26,11 @@ fn run_scene(json: &str) -> RunResult {
 }
 
 fn block_on_plate(dt: f64, duration: f64) -> String {
+    block_on_plate_with(dt, duration, "projected")
+}
+
+/// With the barrier Hessian `hessian` (`projected` or `gauss_newton`).
+fn block_on_plate_with(dt: f64, duration: f64, hessian: &str) -> String {
     format!(
         r#"{{
   "dimension": 2, "gravity": [0, -9.81],
@@ -38,26 +43,34 @@ fn block_on_plate(dt: f64, duration: f64) -> String {
     {{ "kind": "fem", "name": "plate", "mesh": {{ "rectangle": {{ "min": [-1, -0.1], "max": [1, 0], "cells": [20, 1] }} }},
       "material": {{ "E": 1e7, "nu": 0.3, "rho": 1000 }}, "prescribed": [ {{ "vertices": "all", "motion": [] }} ] }}
   ],
-  "contact": {{ "dhat": 0.005, "kappa": 1e5 }}
+  "contact": {{ "dhat": 0.005, "kappa": 1e5, "hessian": "{hessian}" }}
 }}"#
     )
 }
 
 /// An MPM block dropped on a fixed FEM plate comes to rest above it, without any particle ever
 /// entering the plate — at Δt = 1e-2 and at Δt = 1e-1 (where one step moves the block further
-/// than the gap).
+/// than the gap) — with either barrier Hessian.
 #[test]
 fn block_falls_on_plate_and_rests_at_large_time_steps() {
-    for dt in [1e-2, 1e-1] {
-        let r = run_scene(&block_on_plate(dt, 1.5));
+    for (dt, hessian) in [
+        (1e-2, "projected"),
+        (1e-1, "projected"),
+        (1e-2, "gauss_newton"),
+        (1e-1, "gauss_newton"),
+    ] {
+        let r = run_scene(&block_on_plate_with(dt, 1.5, hessian));
         let last = r.metrics.last().unwrap();
         let mass = 0.4 * 0.2 * 1000.0;
         // At rest: tiny speed, in contact (within d̂), the weight carried by the barrier.
         let speed = last.momentum[1].abs() / mass;
-        assert!(speed < 0.05, "dt {dt}: still moving at {speed} m/s");
+        assert!(
+            speed < 0.05,
+            "dt {dt}, {hessian}: still moving at {speed} m/s"
+        );
         assert!(
             last.min_distance > 0.0 && last.min_distance < 0.005,
-            "dt {dt}: min distance {}",
+            "dt {dt}, {hessian}: min distance {}",
             last.min_distance
         );
         assert!(last.barrier_energy > 0.0);

@@ -126,7 +126,9 @@ pub fn write(out: &Path, tier: Tier, done: &[Done]) -> Result<()> {
                  departs from them). It takes hours, so it is run an experiment at a time \
                  (`cargo xtask validate --full --only NAME`) and assembled from the saved \
                  outcomes (`cargo xtask validate --full --report --publish`); each section \
-                 says when and at which commit its experiment ran. The quick tier is \
+                 says when and at which commit its experiment ran. Its wall times are those \
+                 of runs that may have shared the two cores with other work (controlled \
+                 timings are in `docs/performance.md`). The quick tier is \
                  [one level up](../README.md).\n"
             );
         }

@@ -67,6 +67,8 @@ fn classify(r: Result<femp::run::RunResult>) -> Class {
     Class::Stable
 }
 
+const SPEED: &str = "impact speed v0 (m/s)";
+
 fn bfemp_scene(v0: f64, dt: f64) -> String {
     json!({
         "dimension": 2,
@@ -92,6 +94,7 @@ fn map_chart(
     stem: &str,
     title: &str,
     x_label: &str,
+    y_label: &str,
     runs: &[(f64, f64, Class)],
 ) -> Result<std::path::PathBuf> {
     let series = Class::ALL
@@ -113,7 +116,7 @@ fn map_chart(
             stem: format!("{stem}_{}", ctx.tier.name()),
             title: title.into(),
             x_label: x_label.into(),
-            y_label: "impact speed v0 (m/s)".into(),
+            y_label: y_label.into(),
             series,
         },
         Style {
@@ -123,6 +126,21 @@ fn map_chart(
             no_lines: true,
         },
     )
+}
+
+/// The explicit stability estimate of the augury scene `base`.
+fn stable_dt(ctx: &Ctx, base: &serde_json::Value) -> Result<f64> {
+    let world = femp::World::<2>::build(femp::scene::parse(
+        &serde_json::to_string(base)?,
+        "augury_blocks",
+        ctx.root.join("fixtures/scenes"),
+        "augury_blocks",
+    )?)?;
+    world
+        .augury
+        .as_ref()
+        .map(|a| a.stable_dt)
+        .ok_or_else(|| anyhow::anyhow!("augury_blocks.json is not an augury scene"))
 }
 
 /// The stability maps.
@@ -168,6 +186,7 @@ pub fn run(ctx: &Ctx) -> Result<Outcome> {
         "stability_bfemp",
         "Stability map, BFEMP: MPM block thrown at a FEM plate",
         "time step Δt (s)",
+        SPEED,
         &bfemp,
     )?;
     out.charts.push(("BFEMP stability map".into(), png));
@@ -187,16 +206,7 @@ pub fn run(ctx: &Ctx) -> Result<Outcome> {
             json!({ "contact": "penalty", "penalty": { "stiffness": 2e3, "band": 0.0625 } }),
         ),
     ] {
-        let stable = femp::World::<2>::build(femp::scene::parse(
-            &serde_json::to_string(&base)?,
-            "augury_blocks",
-            ctx.root.join("fixtures/scenes"),
-            "augury_blocks",
-        )?)?
-        .augury
-        .as_ref()
-        .expect("an augury scene")
-        .stable_dt;
+        let stable = stable_dt(ctx, &base)?;
         let mut runs = Vec::new();
         for &v0 in speeds {
             for &f in fractions {
@@ -226,10 +236,96 @@ pub fn run(ctx: &Ctx) -> Result<Outcome> {
             stem,
             &format!("Stability map, {name}: head-on blocks"),
             "Δt / explicit stability estimate",
+            SPEED,
             &runs,
         )?;
         out.charts.push((format!("{name} stability map"), png));
     }
+    // Augury: the look-ahead τ against the grid-to-mesh size ratio (§3.1: the correction brings
+    // points to rest at zero gap while τ·v0/L is small; at large τ·v0/L they pass each other).
+    // τ is swept as a multiple of Δt (the paper's default is τ = Δt) and charted as τ·v0/L.
+    let (lookaheads, ratios): (&[f64], &[f64]) = match ctx.tier {
+        Tier::Quick => (&[0.25, 0.5, 1.0, 4.0, 16.0, 64.0], &[0.5, 1.0, 2.0, 4.0]),
+        Tier::Full => (
+            &[
+                0.25, 0.5, 0.75, 1.0, 1.5, 2.0, 4.0, 8.0, 16.0, 32.0, 64.0, 256.0,
+            ],
+            &[0.5, 0.75, 1.0, 1.5, 2.0, 3.0, 4.0],
+        ),
+    };
+    let stable = stable_dt(ctx, &base)?;
+    let (v0, mesh, dt) = (1.0, 0.125, 0.5 * stable);
+    let mut runs = Vec::new();
+    let mut at_dt = Vec::new();
+    for &ratio in ratios {
+        for &k in lookaheads {
+            let mut v = base.clone();
+            v["augury"] = json!({
+                "grid_ratio": ratio, "model": "separation", "iterations": 1, "tau": k * dt
+            });
+            v["time"]["dt"] = json!(dt);
+            v["time"]["duration"] = json!(2.0);
+            let label = format!("stability_tau_r{ratio}_k{k}");
+            let class = classify(ctx.run_scene(&label, &serde_json::to_string(&v)?));
+            runs.push((k * dt * v0 / (ratio * mesh), ratio, class));
+            if k == 1.0 {
+                at_dt.push((ratio, class));
+            }
+        }
+    }
+    for c in Class::ALL {
+        let n = runs.iter().filter(|r| r.2 == c).count();
+        out.checks.push(Check::info(
+            &format!("augury APIC N = 1, τ sweep: runs {}", c.name()),
+            format!("{n} of {}", runs.len()),
+            "—".into(),
+        ));
+    }
+    // The paper's choice τ = Δt with its grid (twice the mesh size) and the neighbouring
+    // ratios: the blocks meet, separate, and nothing blows up.
+    let bad: Vec<String> = at_dt
+        .iter()
+        .filter(|(r, c)| (1.0..=2.0).contains(r) && *c != Class::Stable)
+        .map(|(r, c)| format!("ratio {r}: {}", c.name()))
+        .collect();
+    out.checks.push(Check {
+        figure: "augury APIC, τ = Δt, grid 1–2 × mesh: runs not stable".into(),
+        measured: if bad.is_empty() {
+            "0".into()
+        } else {
+            bad.join("; ")
+        },
+        expected: "0".into(),
+        tolerance: "exact".into(),
+        status: if bad.is_empty() {
+            super::Status::Pass
+        } else {
+            super::Status::Fail
+        },
+    });
+    let png = map_chart(
+        ctx,
+        "stability_augury_tau",
+        "Augury APIC N = 1: look-ahead τ and grid size, head-on blocks",
+        "τ·v0 / L (L = grid spacing)",
+        "grid spacing / mesh size",
+        &runs,
+    )?;
+    out.charts
+        .push(("augury look-ahead τ and grid-to-mesh ratio".into(), png));
+    out.notes.push(format!(
+        "The τ map: the head-on blocks (mesh size {mesh} m) at ±{v0} m/s, Δt = ½ × the explicit \
+         estimate = {dt:.3e} s, 2 s (they meet at 0.5 s), one frictionless separation \
+         iteration; τ swept as {lookaheads:?} × Δt and charted as τ·v0/L with L the grid \
+         spacing. The paper's choices are τ = Δt (τ·v0/L = {:.4} at ratio 2) and a grid twice \
+         the mesh size. Per ratio, τ = Δt gives: {}.",
+        dt * v0 / (2.0 * mesh),
+        at_dt
+            .iter()
+            .map(|(r, c)| format!("{r} → {}", c.name()))
+            .collect::<Vec<_>>()
+            .join(", ")
+    ));
     out.notes.push(
         "Classes, worst first: failed (the run stopped with an error), penetrated (some step had \
          a point inside another body), energy grew (total energy above 1.01 × its initial value \
