@@ -819,3 +819,66 @@ fn workspace_root() -> PathBuf {
     let here = Path::new(env!("CARGO_MANIFEST_DIR"));
     here.parent().unwrap_or(here).to_path_buf()
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn utc_minute_is_the_civil_date() {
+        assert_eq!(utc_minute(0), "1970-01-01 00:00 UTC");
+        // 2000-02-29 12:34 UTC (a leap day) and 2026-12-01 18:45 UTC.
+        assert_eq!(utc_minute(951_827_640), "2000-02-29 12:34 UTC");
+        assert_eq!(utc_minute(1_796_150_700), "2026-12-01 18:45 UTC");
+    }
+
+    #[test]
+    fn a_saved_outcome_loads_back_with_its_paths_under_the_output_directory() {
+        let dir = tempfile::tempdir().unwrap();
+        let out = dir.path();
+        let outcome = Ok(Outcome {
+            checks: vec![
+                Check::rel("x", 1.0, 1.0, 0.1, " m"),
+                Check::info("y", "2".into(), "—".into()),
+            ],
+            charts: vec![("chart".into(), out.join("charts/a.png"))],
+            notes: vec!["a note".into()],
+            pictures: vec![("scene".into(), vec![out.join("charts/scene_k.png")])],
+        });
+        save("abc1234", out, "demo", Tier::Full, 12.5, &outcome).unwrap();
+        let text = std::fs::read_to_string(out.join("demo/outcome.json")).unwrap();
+        assert!(
+            text.contains("\"charts/a.png\""),
+            "paths saved relative: {text}"
+        );
+        let saved = load(out, "demo", Tier::Full).unwrap().expect("saved");
+        assert_eq!(saved.commit, "abc1234");
+        assert_eq!(saved.wall_s, 12.5);
+        let o = saved.outcome.unwrap();
+        assert_eq!(o.checks.len(), 2);
+        assert_eq!(o.checks[0].status, Status::Pass);
+        assert_eq!(o.checks[1].measured, "2");
+        assert_eq!(o.charts[0].1, out.join("charts/a.png"));
+        assert_eq!(o.pictures[0].1[0], out.join("charts/scene_k.png"));
+        assert_eq!(o.notes, vec!["a note".to_string()]);
+        // Another tier's outcome is not this tier's; nothing saved is `None`.
+        assert!(load(out, "demo", Tier::Quick).unwrap().is_none());
+        assert!(load(out, "other", Tier::Full).unwrap().is_none());
+        // A damaged file is an error that names it.
+        std::fs::write(out.join("demo/outcome.json"), "{").unwrap();
+        let err = format!("{:#}", load(out, "demo", Tier::Full).err().unwrap());
+        assert!(err.contains("demo/outcome.json"), "{err}");
+        // A failed run is saved as its error.
+        save(
+            "abc1234",
+            out,
+            "bad",
+            Tier::Full,
+            1.0,
+            &Err("it broke".into()),
+        )
+        .unwrap();
+        let bad = load(out, "bad", Tier::Full).unwrap().unwrap();
+        assert_eq!(bad.outcome.err().unwrap(), "it broke");
+    }
+}
