@@ -96,6 +96,38 @@ struct Point {
     penetrations: usize,
 }
 
+/// Each method's Pareto front (the most accurate run up to each wall time) as a chart series,
+/// and every run as a table row (figure prefixed by `prefix`).
+fn fronts(points: &[Point], methods: &[&str], prefix: &str, out: &mut Outcome) -> Vec<Series> {
+    let mut series = Vec::new();
+    for (c, m) in methods.iter().enumerate() {
+        let mut pts: Vec<&Point> = points.iter().filter(|p| p.method == *m).collect();
+        pts.sort_by(|a, b| a.wall.total_cmp(&b.wall));
+        let mut best = f64::INFINITY;
+        let mut front = Vec::new();
+        for p in &pts {
+            if p.error < best {
+                best = p.error;
+                front.push((p.wall, p.error.max(1e-6)));
+            }
+        }
+        series.push(Series::line(*m, front, c));
+        for p in &pts {
+            out.checks.push(Check::info(
+                &format!("{prefix}{m}, h = {}, Δt = {:.2e} s", p.h, p.dt),
+                format!(
+                    "error {:.2} %, {:.2} s wall, max penetrations {}",
+                    100.0 * p.error,
+                    p.wall,
+                    p.penetrations
+                ),
+                "→ 0".into(),
+            ));
+        }
+    }
+    series
+}
+
 fn com_x(masses: &[f64], xs: impl Iterator<Item = f64>) -> f64 {
     let m: f64 = masses.iter().sum();
     xs.zip(masses).map(|(x, mm)| x * mm).sum::<f64>() / m
@@ -183,40 +215,17 @@ pub fn run(ctx: &Ctx) -> Result<Outcome> {
         "augury APIC N = 1",
         "penalty baseline",
     ];
-    let mut series = Vec::new();
-    for (c, m) in methods.iter().enumerate() {
-        let mut pts: Vec<&Point> = points.iter().filter(|p| p.method == *m).collect();
-        pts.sort_by(|a, b| a.wall.total_cmp(&b.wall));
-        // The Pareto front: runs no faster run beats in accuracy.
-        let mut best = f64::INFINITY;
-        let mut front = Vec::new();
-        for p in &pts {
-            if p.error < best {
-                best = p.error;
-                front.push((p.wall, p.error.max(1e-6)));
-            }
-        }
-        series.push(Series::line(*m, front, c));
-        for p in &pts {
-            out.checks.push(Check::info(
-                &format!("{m}, h = {}, Δt = {:.2e} s", p.h, p.dt),
-                format!(
-                    "error {:.2} %, {:.2} s wall, max penetrations {}",
-                    100.0 * p.error,
-                    p.wall,
-                    p.penetrations
-                ),
-                "→ 0".into(),
-            ));
-        }
-        if *m == "BFEMP" {
-            out.checks.push(Check::count(
-                "BFEMP: penetrations, max over all runs and steps",
-                pts.iter().map(|p| p.penetrations).max().unwrap_or(0),
-                0,
-            ));
-        }
-    }
+    let series = fronts(&points, &methods, "", &mut out);
+    out.checks.push(Check::count(
+        "BFEMP: penetrations, max over all runs and steps",
+        points
+            .iter()
+            .filter(|p| p.method == "BFEMP")
+            .map(|p| p.penetrations)
+            .max()
+            .unwrap_or(0),
+        0,
+    ));
     out.notes.push(format!(
         "Error: |s − ½ g sin θ t²| / ½ g sin θ t² of the block's centre of mass after {T_END} s \
          (exact {exact:.4} m). Each method's line is its Pareto front (the most accurate run up to \
@@ -382,32 +391,7 @@ fn impact(ctx: &Ctx, out: &mut Outcome) -> Result<()> {
         "augury PIC N = 1",
         "penalty baseline",
     ];
-    let mut series = Vec::new();
-    for (c, m) in methods.iter().enumerate() {
-        let mut pts: Vec<&Point> = points.iter().filter(|p| p.method == *m).collect();
-        pts.sort_by(|a, b| a.wall.total_cmp(&b.wall));
-        let mut best = f64::INFINITY;
-        let mut front = Vec::new();
-        for p in &pts {
-            if p.error < best {
-                best = p.error;
-                front.push((p.wall, p.error.max(1e-6)));
-            }
-        }
-        series.push(Series::line(*m, front, c));
-        for p in &pts {
-            out.checks.push(Check::info(
-                &format!("impact: {m}, h = {}, Δt = {:.2e} s", p.h, p.dt),
-                format!(
-                    "error {:.2} %, {:.2} s wall, max penetrations {}",
-                    100.0 * p.error,
-                    p.wall,
-                    p.penetrations
-                ),
-                "→ 0".into(),
-            ));
-        }
-    }
+    let series = fronts(&points, &methods, "impact: ", out);
     out.checks.push(Check::count(
         "impact: BFEMP penetrations, max over all runs and steps",
         points
