@@ -626,16 +626,9 @@ fn load(out: &Path, name: &str, tier: Tier) -> Result<Option<Saved>> {
     Ok(Some(saved))
 }
 
-/// `git describe --always --dirty`, or `unknown commit` outside a work tree.
+/// `git describe --always --dirty` of the code this binary was built from (see `build.rs`).
 fn git_describe() -> String {
-    std::process::Command::new("git")
-        .args(["describe", "--always", "--dirty"])
-        .current_dir(workspace_root())
-        .output()
-        .ok()
-        .filter(|o| o.status.success())
-        .and_then(|o| String::from_utf8(o.stdout).ok())
-        .map_or_else(|| "unknown commit".into(), |s| s.trim().to_string())
+    env!("FEMP_BUILD_COMMIT").to_string()
 }
 
 /// `YYYY-MM-DD HH:MM UTC` of a Unix time (civil-from-days, proleptic Gregorian calendar).
@@ -717,7 +710,7 @@ pub fn main(args: &[String]) -> Result<()> {
         }
     }
     let root = workspace_root();
-    // The code that runs is the code at start (the tree may change during a long run).
+    // The code that runs is the code this binary was built from.
     let commit = git_describe();
     let out = out.unwrap_or_else(|| root.join("target/validation").join(tier.name()));
     std::fs::create_dir_all(&out)?;

@@ -55,7 +55,7 @@ fn scene(fem: bool, h: f64, ppc: usize, dt: f64) -> String {
   "name": "sine_{kind}",
   "dimension": 2, "gravity": [0, -9.81],
   "time": {{ "dt": {dt}, "duration": 1.8, "integrator": "backward_euler" }},
-  "solver": {{ "tolerance": 1e-4 }},
+  "solver": {{ "tolerance": 1e-4, "max_newton_iterations": 300 }},
   "mpm": {{ "grid_spacing": {h}, "transfer": "apic" }},
   {boundary}
 }}"#,
