@@ -236,8 +236,11 @@ pub fn write(out: &Path, tier: Tier, done: &[Done]) -> Result<()> {
                 }
                 for (caption, files) in &o.pictures {
                     let _ = writeln!(s, "{caption}:\n");
+                    // The full tier shows key frames only (its animations would double the
+                    // committed images; the quick tier's report has them).
                     let row: Vec<String> = files
                         .iter()
+                        .filter(|f| tier == Tier::Quick || f.extension().is_none_or(|e| e != "gif"))
                         .map(|f| {
                             let rel = f.strip_prefix(out).unwrap_or(f);
                             let name = rel
@@ -255,19 +258,18 @@ pub fn write(out: &Path, tier: Tier, done: &[Done]) -> Result<()> {
     std::fs::write(&path, s).with_context(|| format!("writing {}", path.display()))
 }
 
-/// Copy the report and the charts and pictures it shows (with each chart's SVG) into `docs`,
+/// Copy the report and the charts and pictures it shows into `docs`,
 /// removing what the new report no longer shows (stale files from earlier runs stay out).
 pub fn publish(out: &Path, docs: &Path) -> Result<()> {
     let charts = docs.join("charts");
     std::fs::create_dir_all(&charts)?;
     let report = std::fs::read_to_string(out.join("README.md"))?;
     let mut keep = std::collections::BTreeSet::new();
+    // Only what the report shows: the PNGs and GIFs (each chart's SVG stays in the run's output
+    // directory, `OUT/charts/`, to keep the committed images small).
     for part in report.split("](charts/").skip(1) {
         if let Some(name) = part.split(')').next() {
             keep.insert(name.to_string());
-            if let Some(stem) = name.strip_suffix(".png") {
-                keep.insert(format!("{stem}.svg"));
-            }
         }
     }
     for name in &keep {
