@@ -83,7 +83,8 @@ pub fn run(ctx: &Ctx) -> Result<Outcome> {
     for (k, fem) in [true, false].into_iter().enumerate() {
         let label = if fem { "sine_fem" } else { "sine_level_set" };
         // Per step: (t, particles above the curve, highest particle).
-        let (r, probes) = ctx.run_scene_2d(label, &scene(fem, h, ppc, dt), |w| {
+        // A run that stops keeps its steps: what it measured so far is reported.
+        let (r, probes) = ctx.run_scene_keep::<2, _>(label, &scene(fem, h, ppc, dt), |w| {
             let m = w.mpm.as_ref().expect("MPM box");
             let inside = m.x.iter().filter(|x| x[1] >= curve(x[0], w.time)).count();
             let top = m.x.iter().map(|x| x[1]).fold(f64::NEG_INFINITY, f64::max);
@@ -98,17 +99,31 @@ pub fn run(ctx: &Ctx) -> Result<Outcome> {
         } else {
             "level set (slip)"
         };
+        let r = match r {
+            Ok(r) => Some(r),
+            Err(e) => {
+                out.checks.push(Check::stopped(
+                    format!("{tag}: run reaches t = 1.8 s"),
+                    format!("stopped at t = {:.3} s", probes.last().map_or(0.0, |p| p.0)),
+                    "1.8 s".into(),
+                ));
+                out.notes.push(format!("{tag}: the run stopped: {e}"));
+                None
+            }
+        };
         if fem {
             out.checks.push(Check::count(
                 &format!("{tag}: particles inside the boundary, max"),
                 max_inside,
                 0,
             ));
-            out.checks.push(Check::count(
-                &format!("{tag}: penetrations (independent check)"),
-                r.metrics.iter().map(|m| m.penetrations).max().unwrap_or(0),
-                0,
-            ));
+            if let Some(r) = &r {
+                out.checks.push(Check::count(
+                    &format!("{tag}: penetrations (independent check)"),
+                    r.metrics.iter().map(|m| m.penetrations).max().unwrap_or(0),
+                    0,
+                ));
+            }
         } else {
             out.checks.push(Check {
                 figure: format!("{tag}: particles inside the boundary, max"),
@@ -124,7 +139,11 @@ pub fn run(ctx: &Ctx) -> Result<Outcome> {
         }
         out.checks.push(Check::info(
             &format!("{tag}: box top after release (m)"),
-            format!("{top_end:.3}"),
+            if r.is_some() {
+                format!("{top_end:.3}")
+            } else {
+                "— (stopped)".into()
+            },
             if fem {
                 "≈ 1 (no adhesion)".into()
             } else {
