@@ -179,13 +179,7 @@ pub fn run(ctx: &Ctx) -> Result<Outcome> {
         ];
         for (method, aug) in variants {
             // The stability estimate of this mesh, from a probe build.
-            let probe = femp::World::<2>::build(femp::scene::parse(
-                &explicit_scene(h, 1e-4, aug.clone()),
-                "probe",
-                ctx.root.clone(),
-                "probe",
-            )?)?;
-            let stable = probe.augury.as_ref().expect("augury world").stable_dt;
+            let stable = ctx.stable_dt(&explicit_scene(h, 1e-4, aug.clone()))?;
             for &f in fractions {
                 let dt = f * stable;
                 let label = format!("compare_{}_h{h}_f{f}", method.replace(' ', "_"));
@@ -295,6 +289,28 @@ fn impact_explicit(h: f64, dt: f64, augury: serde_json::Value) -> String {
     .to_string()
 }
 
+/// One impact run: a point (error of the left bar's last velocity against −v0) or, if it stopped,
+/// a line in `failed`.
+fn record(
+    points: &mut Vec<Point>,
+    failed: &mut Vec<String>,
+    (method, h, dt): (&'static str, f64, f64),
+    r: Result<femp::run::RunResult, femp::SimError>,
+    vs: &[f64],
+) {
+    match r {
+        Ok(r) => points.push(Point {
+            method,
+            h,
+            dt,
+            wall: r.summary.wall_s,
+            error: (vs.last().copied().unwrap_or(f64::NAN) + V0).abs() / V0,
+            penetrations: r.summary.max_penetrations,
+        }),
+        Err(e) => failed.push(format!("{method}, h = {h}, Δt = {dt:.2e}: {e}")),
+    }
+}
+
 /// The head-on impact of two 1D-like bars: every method, resolution and time step.
 fn impact(ctx: &Ctx, out: &mut Outcome) -> Result<()> {
     let (hs, bfemp_dts, fractions): (&[f64], &[f64], &[f64]) = match ctx.tier {
@@ -327,17 +343,7 @@ fn impact(ctx: &Ctx, out: &mut Outcome) -> Result<()> {
                         let m = w.mpm.as_ref().expect("MPM block");
                         velocity(&m.mass, &m.v)
                     })?;
-                match r {
-                    Ok(r) => points.push(Point {
-                        method,
-                        h,
-                        dt,
-                        wall: r.summary.wall_s,
-                        error: (vs.last().copied().unwrap_or(f64::NAN) + V0).abs() / V0,
-                        penetrations: r.summary.max_penetrations,
-                    }),
-                    Err(e) => failed.push(format!("{method}, h = {h}, Δt = {dt:.2e}: {e}")),
-                }
+                record(&mut points, &mut failed, (method, h, dt), r, &vs);
             }
         }
         let variants: [(&'static str, serde_json::Value); 3] = [
@@ -355,13 +361,7 @@ fn impact(ctx: &Ctx, out: &mut Outcome) -> Result<()> {
             ),
         ];
         for (method, aug) in variants {
-            let probe = femp::World::<2>::build(femp::scene::parse(
-                &impact_explicit(h, 1e-4, aug.clone()),
-                "probe",
-                ctx.root.clone(),
-                "probe",
-            )?)?;
-            let stable = probe.augury.as_ref().expect("augury world").stable_dt;
+            let stable = ctx.stable_dt(&impact_explicit(h, 1e-4, aug.clone()))?;
             for &f in fractions {
                 let dt = f * stable;
                 let label = format!("impact_{}_h{h}_f{f}", method.replace(' ', "_"));
@@ -370,17 +370,7 @@ fn impact(ctx: &Ctx, out: &mut Outcome) -> Result<()> {
                     &impact_explicit(h, dt, aug.clone()),
                     |w| velocity(&w.fem[0].mass, &w.fem[0].v),
                 )?;
-                match r {
-                    Ok(r) => points.push(Point {
-                        method,
-                        h,
-                        dt,
-                        wall: r.summary.wall_s,
-                        error: (vs.last().copied().unwrap_or(f64::NAN) + V0).abs() / V0,
-                        penetrations: r.summary.max_penetrations,
-                    }),
-                    Err(e) => failed.push(format!("{method}, h = {h}, Δt = {dt:.2e}: {e}")),
-                }
+                record(&mut points, &mut failed, (method, h, dt), r, &vs);
             }
         }
     }
@@ -412,21 +402,17 @@ fn impact(ctx: &Ctx, out: &mut Outcome) -> Result<()> {
         })
         .map(|a| format!("h = {}, Δt = {:.2e}", a.h, a.dt))
         .collect();
-    out.checks.push(Check {
-        figure: "impact: APIC rebounds closer to −v0 than PIC (same h, Δt)".into(),
-        measured: if worse.is_empty() {
+    out.checks.push(Check::holds(
+        "impact: APIC rebounds closer to −v0 than PIC (same h, Δt)",
+        if worse.is_empty() {
             "in every run".into()
         } else {
             format!("not at {}", worse.join("; "))
         },
-        expected: "in every run".into(),
-        tolerance: "—".into(),
-        status: if worse.is_empty() {
-            super::Status::Pass
-        } else {
-            super::Status::Fail
-        },
-    });
+        "in every run",
+        "—",
+        worse.is_empty(),
+    ));
     out.checks.push(Check::count(
         "impact: runs that stopped with an error",
         failed.len(),

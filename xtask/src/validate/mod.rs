@@ -150,6 +150,23 @@ impl Check {
         }
     }
 
+    /// A condition that must hold (`ok`), with how it was measured.
+    pub fn holds(
+        figure: &str,
+        measured: String,
+        expected: &str,
+        tolerance: &str,
+        ok: bool,
+    ) -> Self {
+        Self {
+            figure: figure.into(),
+            measured,
+            expected: expected.into(),
+            tolerance: tolerance.into(),
+            status: if ok { Status::Pass } else { Status::Fail },
+        }
+    }
+
     /// A reported figure.
     pub fn info(figure: &str, measured: String, expected: String) -> Self {
         Self {
@@ -364,6 +381,21 @@ impl Ctx {
             out.pictures.push((caption, files));
         }
         Ok(())
+    }
+
+    /// The explicit stability estimate of the 2D augury scene `json`, from a probe build.
+    pub fn stable_dt(&self, json: &str) -> Result<f64> {
+        let world = femp::World::<2>::build(femp::scene::parse(
+            json,
+            "probe",
+            self.root.join("fixtures/scenes"),
+            "probe",
+        )?)?;
+        world
+            .augury
+            .as_ref()
+            .map(|a| a.stable_dt)
+            .ok_or_else(|| anyhow::anyhow!("the probe scene is not an augury scene"))
     }
 
     /// Run a 2D scene, recording `probe(world)` after every step.

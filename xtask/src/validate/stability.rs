@@ -128,19 +128,16 @@ fn map_chart(
     )
 }
 
-/// The explicit stability estimate of the augury scene `base`.
-fn stable_dt(ctx: &Ctx, base: &serde_json::Value) -> Result<f64> {
-    let world = femp::World::<2>::build(femp::scene::parse(
-        &serde_json::to_string(base)?,
-        "augury_blocks",
-        ctx.root.join("fixtures/scenes"),
-        "augury_blocks",
-    )?)?;
-    world
-        .augury
-        .as_ref()
-        .map(|a| a.stable_dt)
-        .ok_or_else(|| anyhow::anyhow!("augury_blocks.json is not an augury scene"))
+/// One table row per class: how many of `runs` fell in it.
+fn class_rows(out: &mut Outcome, name: &str, runs: &[(f64, f64, Class)]) {
+    for c in Class::ALL {
+        let n = runs.iter().filter(|r| r.2 == c).count();
+        out.checks.push(Check::info(
+            &format!("{name}: runs {}", c.name()),
+            format!("{n} of {}", runs.len()),
+            "—".into(),
+        ));
+    }
 }
 
 /// The stability maps.
@@ -173,14 +170,7 @@ pub fn run(ctx: &Ctx) -> Result<Outcome> {
         pen,
         0,
     ));
-    for c in Class::ALL {
-        let n = bfemp.iter().filter(|r| r.2 == c).count();
-        out.checks.push(Check::info(
-            &format!("BFEMP: runs {}", c.name()),
-            format!("{n} of {}", bfemp.len()),
-            "—".into(),
-        ));
-    }
+    class_rows(&mut out, "BFEMP", &bfemp);
     let png = map_chart(
         ctx,
         "stability_bfemp",
@@ -206,7 +196,7 @@ pub fn run(ctx: &Ctx) -> Result<Outcome> {
             json!({ "contact": "penalty", "penalty": { "stiffness": 2e3, "band": 0.0625 } }),
         ),
     ] {
-        let stable = stable_dt(ctx, &base)?;
+        let stable = ctx.stable_dt(&serde_json::to_string(&base)?)?;
         let mut runs = Vec::new();
         for &v0 in speeds {
             for &f in fractions {
@@ -223,14 +213,7 @@ pub fn run(ctx: &Ctx) -> Result<Outcome> {
                 runs.push((f, v0, classify(r)));
             }
         }
-        for c in Class::ALL {
-            let n = runs.iter().filter(|r| r.2 == c).count();
-            out.checks.push(Check::info(
-                &format!("{name}: runs {}", c.name()),
-                format!("{n} of {}", runs.len()),
-                "—".into(),
-            ));
-        }
+        class_rows(&mut out, name, &runs);
         let png = map_chart(
             ctx,
             stem,
@@ -253,7 +236,7 @@ pub fn run(ctx: &Ctx) -> Result<Outcome> {
             &[0.5, 0.75, 1.0, 1.5, 2.0, 3.0, 4.0],
         ),
     };
-    let stable = stable_dt(ctx, &base)?;
+    let stable = ctx.stable_dt(&serde_json::to_string(&base)?)?;
     let (v0, mesh, dt) = (1.0, 0.125, 0.5 * stable);
     let mut runs = Vec::new();
     let mut at_dt = Vec::new();
@@ -273,14 +256,7 @@ pub fn run(ctx: &Ctx) -> Result<Outcome> {
             }
         }
     }
-    for c in Class::ALL {
-        let n = runs.iter().filter(|r| r.2 == c).count();
-        out.checks.push(Check::info(
-            &format!("augury APIC N = 1, τ sweep: runs {}", c.name()),
-            format!("{n} of {}", runs.len()),
-            "—".into(),
-        ));
-    }
+    class_rows(&mut out, "augury APIC N = 1, τ sweep", &runs);
     // The paper's choice τ = Δt with its grid (twice the mesh size) and the neighbouring
     // ratios: the blocks meet, separate, and nothing blows up.
     let bad: Vec<String> = at_dt
@@ -288,21 +264,17 @@ pub fn run(ctx: &Ctx) -> Result<Outcome> {
         .filter(|(r, c)| (1.0..=2.0).contains(r) && *c != Class::Stable)
         .map(|(r, c)| format!("ratio {r}: {}", c.name()))
         .collect();
-    out.checks.push(Check {
-        figure: "augury APIC, τ = Δt, grid 1–2 × mesh: runs not stable".into(),
-        measured: if bad.is_empty() {
+    out.checks.push(Check::holds(
+        "augury APIC, τ = Δt, grid 1–2 × mesh: runs not stable",
+        if bad.is_empty() {
             "0".into()
         } else {
             bad.join("; ")
         },
-        expected: "0".into(),
-        tolerance: "exact".into(),
-        status: if bad.is_empty() {
-            super::Status::Pass
-        } else {
-            super::Status::Fail
-        },
-    });
+        "0",
+        "exact",
+        bad.is_empty(),
+    ));
     let png = map_chart(
         ctx,
         "stability_augury_tau",
