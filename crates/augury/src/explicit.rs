@@ -28,6 +28,11 @@ pub struct ExplicitBody<const D: usize> {
     pub fixed: Vec<bool>,
     /// Boundary vertices (the contact particles), in order.
     pub boundary: Vec<usize>,
+    /// Contact force on each vertex at the current time (N; N/m in 2D): `m_p Â_p` of the augury
+    /// correction and the penalty baseline's forces. On a fixed vertex it is the force the
+    /// correction asked for and the prescription overrode — with [`Obstacles::Kinematic`], the
+    /// reaction a fixed plate feels.
+    pub contact_force: Vec<SVector<f64, D>>,
     /// The boundary (facets, normals).
     surface: Boundary<D>,
     /// Position of each vertex in `boundary` (`usize::MAX` inside).
@@ -64,6 +69,7 @@ impl<const D: usize> ExplicitBody<D> {
             surface: b,
             slot,
             force: vec![SVector::zeros(); n],
+            contact_force: vec![SVector::zeros(); n],
         })
     }
 
@@ -197,6 +203,28 @@ fn closest_on_facet<const D: usize>(
     }
 }
 
+/// Mass factor of the vertices of fully prescribed bodies under [`Obstacles::Kinematic`].
+pub const KINEMATIC_MASS: f64 = 1e8;
+
+/// How a body whose every vertex is fixed or prescribed (a plate, a wall, a rigid ramp) enters
+/// the augury correction. The correction cannot change such a body's motion either way; the
+/// choice is what its particles weigh on the grid.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Obstacles {
+    /// With their lumped masses, like any other particle (the paper's formulation). A body
+    /// pressed against the obstacle keeps, each step, the share of its approach velocity the
+    /// obstacle's particles would have taken, and sinks in under sustained load (measured:
+    /// a disk pressed between plates passes 70–140 vertices into them).
+    #[default]
+    Lumped,
+    /// As infinitely heavy: mass × [`KINEMATIC_MASS`] (the limit to 1e-8), their `B_p` that of
+    /// a translation (0). Normal contact is then held (the pressed disk: no vertex inside, the
+    /// plate's reaction equal to the load), but tangential motion along the obstacle is lost:
+    /// the iterations cannot hand the undone tangential change to the obstacle, and a block
+    /// sliding frictionlessly down a rigid ramp sticks (measured, `docs/augury.md`).
+    Kinematic,
+}
+
 /// Parameters of the explicit system.
 pub struct ExplicitParams<const D: usize> {
     /// Time step Δt.
@@ -217,6 +245,9 @@ pub struct ExplicitSystem<const D: usize> {
     pub contact: Option<AuguryContact<D>>,
     /// The search-based penalty baseline (used instead of, or besides, augury contact).
     pub penalty: Option<PenaltyContact<D>>,
+    /// How fully prescribed bodies enter the augury correction (default
+    /// [`Obstacles::Lumped`]).
+    pub obstacles: Obstacles,
     /// `B_p` of every boundary particle (bodies concatenated in order).
     pub b: Vec<SMatrix<f64, D, D>>,
     /// Contact rate of `B_p` (its acceleration).
@@ -244,6 +275,7 @@ impl<const D: usize> ExplicitSystem<D> {
             time: 0.0,
             contact,
             penalty: None,
+            obstacles: Obstacles::Lumped,
             b: vec![SMatrix::zeros(); n],
             bdot: vec![SMatrix::zeros(); n],
             px: Vec::with_capacity(n),
@@ -277,6 +309,9 @@ impl<const D: usize> ExplicitSystem<D> {
         let g = self.params.gravity;
         for b in &mut self.bodies {
             b.force.iter_mut().for_each(|f| *f = SVector::zeros());
+            b.contact_force
+                .iter_mut()
+                .for_each(|f| *f = SVector::zeros());
             b.elastic
                 .add_gradient(&b.x, 1.0, &mut b.force)
                 .map_err(|e| AuguryError::Fem(format!("body `{}`: {e}", b.name)))?;
@@ -356,8 +391,10 @@ impl<const D: usize> ExplicitSystem<D> {
                     let force = n * (-pen.stiffness * g);
                     let v = pen.points[q];
                     self.bodies[ib].force[v] -= force;
+                    self.bodies[ib].contact_force[v] += force;
                     for k in 0..D {
                         self.bodies[jb].force[fv[k]] += force * w[k];
+                        self.bodies[jb].contact_force[fv[k]] -= force * w[k];
                     }
                 }
             }
@@ -384,6 +421,7 @@ impl<const D: usize> ExplicitSystem<D> {
         self.pn.clear();
         self.pv.clear();
         for b in &self.bodies {
+            let kinematic = self.obstacles == Obstacles::Kinematic && b.fixed.iter().all(|&f| f);
             let start = self.pn.len();
             self.pn.resize(start + b.boundary.len(), SVector::zeros());
             for (f, fv) in b.surface.facets().iter().enumerate() {
@@ -394,7 +432,15 @@ impl<const D: usize> ExplicitSystem<D> {
             }
             for &v in &b.boundary {
                 self.px.push(b.x[v]);
-                self.pm.push(b.mass[v]);
+                // `Obstacles::Kinematic`: the infinite-mass limit. Only for fully prescribed
+                // bodies: the fixed vertices of a partly prescribed one (the anchored bottom of
+                // a ramp) lie inside it, often within a grid cell of its free surface, and as
+                // infinitely heavy particles would impose rest on the nodes that surface uses.
+                self.pm.push(if kinematic {
+                    b.mass[v] * KINEMATIC_MASS
+                } else {
+                    b.mass[v]
+                });
                 self.pv.push(b.v[v] + b.a[v] * tau);
             }
         }
@@ -420,10 +466,16 @@ impl<const D: usize> ExplicitSystem<D> {
         )?;
         let mut k = 0;
         for b in &mut self.bodies {
+            let kinematic = self.obstacles == Obstacles::Kinematic && b.fixed.iter().all(|&f| f);
             for &v in &b.boundary {
                 if !b.fixed[v] {
                     b.a[v] += self.pa[k];
+                } else if kinematic {
+                    // Its `B_p` stays that of a translation; accumulating contact rates, it
+                    // would carry a velocity field of its own into the grid at kinematic weight.
+                    self.bdot[k] = SMatrix::zeros();
                 }
+                b.contact_force[v] += self.pa[k] * self.pm[k];
                 k += 1;
             }
         }

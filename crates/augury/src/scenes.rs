@@ -20,6 +20,10 @@ pub struct BlocksRun {
     pub max_p_error: f64,
     /// Largest `|L(t) − L(0)| / (2 Σ m|v|)` over the run (L with the APIC `B` term).
     pub max_l_error: f64,
+    /// `|∫ F_a dt − (p_a(T) − p_a(0))| / |p_a(0)|`: block A's recorded contact forces
+    /// ([`ExplicitBody::contact_force`], trapezoid rule as central differences apply them)
+    /// against its momentum change.
+    pub impulse_error: f64,
     /// Steps taken.
     pub steps: usize,
 }
@@ -91,8 +95,18 @@ pub fn head_on_blocks(contact: BlocksContact, offset: f64) -> Result<BlocksRun, 
     let l_scale = 2.0 * p_scale;
     let (mut max_p_error, mut max_l_error, mut min_gap) = (0.0f64, 0.0f64, f64::INFINITY);
     let mut steps = 0;
+    let momentum_a = |sys: &ExplicitSystem<2>| -> Vector2<f64> {
+        let b = &sys.bodies[0];
+        b.v.iter().zip(&b.mass).map(|(v, m)| v * *m).sum()
+    };
+    let contact_a =
+        |sys: &ExplicitSystem<2>| -> Vector2<f64> { sys.bodies[0].contact_force.iter().sum() };
+    let pa0 = momentum_a(&sys);
+    let mut impulse = Vector2::zeros();
     while sys.time < 0.8 {
+        let f0 = contact_a(&sys);
         sys.step()?;
+        impulse += (f0 + contact_a(&sys)) * (0.5 * dt);
         steps += 1;
         max_p_error = max_p_error.max((sys.momentum() - p0).norm() / p_scale);
         max_l_error = max_l_error.max((sys.angular_momentum() - l0).norm() / l_scale);
@@ -120,6 +134,7 @@ pub fn head_on_blocks(contact: BlocksContact, offset: f64) -> Result<BlocksRun, 
         min_gap,
         max_p_error,
         max_l_error,
+        impulse_error: (impulse - (momentum_a(&sys) - pa0)).norm() / pa0.norm(),
         steps,
     })
 }

@@ -5,7 +5,9 @@
 //! The world's FEM bodies mirror the explicit system's state after every step, so output,
 //! metrics and the validation suite read one place for both methods.
 
-use femp_augury::explicit::{ExplicitBody, ExplicitParams, ExplicitSystem, PenaltyContact};
+use femp_augury::explicit::{
+    ExplicitBody, ExplicitParams, ExplicitSystem, Obstacles, PenaltyContact,
+};
 use femp_augury::{AuguryContact, AuguryParams, ContactModel, Transfer, TransferKind};
 use femp_kernels::Kernel;
 use nalgebra::{SMatrix, SVector};
@@ -13,8 +15,8 @@ use nalgebra::{SMatrix, SVector};
 use crate::error::{SimError, invalid};
 use crate::motion::angular_components;
 use crate::scene::{
-    AuguryContactSpec, AuguryModelSpec, AugurySpec, AuguryTransferSpec, BodySpec, KernelSpec,
-    SceneSpec,
+    AuguryContactSpec, AuguryModelSpec, AuguryObstaclesSpec, AugurySpec, AuguryTransferSpec,
+    BodySpec, KernelSpec, SceneSpec,
 };
 use crate::step::StepReport;
 use crate::world::{FemBody, World, inside_elements, point_facet_distance};
@@ -72,6 +74,7 @@ impl<const D: usize> AuguryState<D> {
             friction: 0.0,
             contact: AuguryContactSpec::Augury,
             penalty: None,
+            obstacles: AuguryObstaclesSpec::Lumped,
         };
         let a = spec.augury.as_ref().unwrap_or(&default);
         let dt = spec.time.dt;
@@ -155,6 +158,10 @@ impl<const D: usize> AuguryState<D> {
         };
         let mut system = ExplicitSystem::new(bodies, params, contact);
         system.penalty = penalty;
+        system.obstacles = match a.obstacles {
+            AuguryObstaclesSpec::Lumped => Obstacles::Lumped,
+            AuguryObstaclesSpec::Kinematic => Obstacles::Kinematic,
+        };
         // Initial B_p = L D_p for the bodies' rigid initial velocity fields (appendix A).
         if apic {
             let d_p = system.contact.as_ref().map_or(0.0, |c| c.transfer().d_p());

@@ -188,6 +188,27 @@ fn the_penalty_baseline_runs_from_a_scene() {
     assert!(r.metrics.iter().any(|m| m.contact_terms > 0));
 }
 
+/// `"obstacles"` from a scene: block A driven by gravity into block B, whose every vertex is
+/// prescribed to rest (a wall). As a kinematic obstacle the wall keeps every vertex of A out;
+/// with lumped masses (the default) A sinks in.
+#[test]
+fn a_prescribed_wall_holds_as_a_kinematic_obstacle() {
+    let max_penetrations = |obstacles: &str| {
+        let mut v = fixture();
+        v["gravity"] = json!([5.0, 0.0]);
+        v["time"]["duration"] = json!(2.0);
+        v["augury"]["obstacles"] = json!(obstacles);
+        v["bodies"][0]["velocity"] = json!([0.0, 0.0]);
+        v["bodies"][1]["velocity"] = json!([0.0, 0.0]);
+        v["bodies"][1]["prescribed"] = json!([{ "vertices": "all", "motion": [] }]);
+        let dir = tempfile::tempdir().unwrap();
+        let r = run(parse(&v).unwrap(), dir.path(), &quiet(None)).unwrap();
+        r.summary.max_penetrations
+    };
+    assert_eq!(max_penetrations("kinematic"), 0);
+    assert!(max_penetrations("lumped") > 0);
+}
+
 /// A time step far above the stability estimate blows up; the run stops with an error that
 /// names the estimate, keeps the metrics written so far and says `failed` in the summary.
 #[test]
@@ -264,6 +285,11 @@ fn bad_augury_input_is_named() {
             let mut v = fixture();
             v["augury"]["kernel"] = json!("cubic");
             (v, vec!["augury.kernel", "cubic"])
+        },
+        {
+            let mut v = fixture();
+            v["augury"]["obstacles"] = json!("heavy");
+            (v, vec!["augury.obstacles", "heavy"])
         },
         {
             let mut v = fixture();

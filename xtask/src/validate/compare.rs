@@ -87,18 +87,23 @@ fn explicit_scene(h: f64, dt: f64, augury: serde_json::Value) -> String {
 }
 
 /// One run's outcome.
-struct Point {
-    method: &'static str,
-    h: f64,
-    dt: f64,
-    wall: f64,
-    error: f64,
-    penetrations: usize,
+pub(super) struct Point {
+    pub method: &'static str,
+    pub h: f64,
+    pub dt: f64,
+    pub wall: f64,
+    pub error: f64,
+    pub penetrations: usize,
 }
 
 /// Each method's Pareto front (the most accurate run up to each wall time) as a chart series,
 /// and every run as a table row (figure prefixed by `prefix`).
-fn fronts(points: &[Point], methods: &[&str], prefix: &str, out: &mut Outcome) -> Vec<Series> {
+pub(super) fn fronts(
+    points: &[Point],
+    methods: &[&str],
+    prefix: &str,
+    out: &mut Outcome,
+) -> Vec<Series> {
     let mut series = Vec::new();
     for (c, m) in methods.iter().enumerate() {
         let mut pts: Vec<&Point> = points.iter().filter(|p| p.method == *m).collect();

@@ -17,33 +17,63 @@ use anyhow::Result;
 use super::charts::{self, Chart, Series};
 use super::{Check, Ctx, Outcome, Tier};
 
-const E: f64 = 1e10;
-const NU: f64 = 0.3;
-const R: f64 = 1.0;
+pub(super) const E: f64 = 1e10;
+pub(super) const NU: f64 = 0.3;
+pub(super) const R: f64 = 1.0;
 const DHAT: f64 = 1e-4;
 /// The small-deformation window of the fit (m).
-const A_LO: f64 = 0.02;
-const A_HI: f64 = 0.1;
+pub(super) const A_LO: f64 = 0.02;
+pub(super) const A_HI: f64 = 0.1;
 
 /// One step's contact measurements.
 #[derive(Clone, Copy, Debug)]
-struct Sample {
+pub(super) struct Sample {
     /// Half the horizontal range of the particles within d̂ of the plate (the paper's a).
-    a_range: f64,
+    pub a_range: f64,
     /// `2 √(Σ f x² / Σ f − x̄²)`: the half-width of an elliptical (Hertz) pressure with the same
     /// second moment as the barrier forces.
-    a_moment: f64,
+    pub a_moment: f64,
     /// Barrier force on the disk from the bottom plate (N/m).
-    force: f64,
+    pub force: f64,
 }
 
-/// One run: a sample per step with contact, and the particle spacing.
-fn run_model(ctx: &Ctx, model: &str, h: f64, duration: f64) -> Result<(Vec<Sample>, f64)> {
+/// How the top plate presses: speed (m/s, downwards), time step and duration (s).
+#[derive(Clone, Copy, Debug)]
+pub(super) struct Load {
+    pub speed: f64,
+    pub dt: f64,
+    pub duration: f64,
+}
+
+/// `(a, F)` of a pressure given as point forces `(x, f)` along the plate: `F = Σ f` and
+/// `a = 2 √(Σ f x² / F − x̄²)`, which for Hertz's elliptical pressure `p0 √(1 − x²/a²)` is its
+/// half-width (its second moment about the centre is a²/4).
+pub(super) fn moment_width(points: impl Iterator<Item = (f64, f64)>) -> (f64, f64) {
+    let (mut s0, mut s1, mut s2) = (0.0, 0.0, 0.0);
+    for (x, f) in points {
+        s0 += f;
+        s1 += f * x;
+        s2 += f * x * x;
+    }
+    let var = (s2 / s0 - (s1 / s0).powi(2)).max(0.0);
+    (2.0 * var.sqrt(), s0)
+}
+
+/// One run: a sample per step with contact, the particle spacing and the run's summary.
+pub(super) fn run_model(
+    ctx: &Ctx,
+    model: &str,
+    h: f64,
+    load: Load,
+) -> Result<(Vec<Sample>, f64, femp::run::RunResult)> {
     let mut v: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(
         ctx.root.join("fixtures/scenes/brazilian_disk.json"),
     )?)?;
     v["mpm"]["grid_spacing"] = serde_json::json!(h);
-    v["time"]["duration"] = serde_json::json!(duration);
+    v["time"]["duration"] = serde_json::json!(load.duration);
+    v["time"]["dt"] = serde_json::json!(load.dt);
+    v["bodies"][2]["prescribed"][0]["motion"][0]["velocity"] =
+        serde_json::json!([0.0, -load.speed]);
     v["bodies"][0]["material"]["model"] = serde_json::json!(model);
     // Plates d̂ beyond the extreme particles (the paper: "placed d̂ below / above the disk").
     let probe = femp::World::<2>::build(femp::scene::parse(
@@ -66,7 +96,11 @@ fn run_model(ctx: &Ctx, model: &str, h: f64, duration: f64) -> Result<(Vec<Sampl
     v["bodies"][1]["mesh"]["rectangle"]["max"] = serde_json::json!([1.5, plate_y]);
     v["bodies"][2]["mesh"]["rectangle"]["min"] = serde_json::json!([-1.5, y_hi + DHAT]);
     v["bodies"][2]["mesh"]["rectangle"]["max"] = serde_json::json!([1.5, y_hi + DHAT + 0.1]);
-    let label = format!("hertz_{model}_h{h}");
+    let label = if load.speed == 0.1 {
+        format!("hertz_{model}_h{h}")
+    } else {
+        format!("hertz_{model}_h{h}_v{}_dt{}", load.speed, load.dt)
+    };
     let (r, probes) =
         ctx.run_scene_probe::<2, Option<Sample>>(&label, &serde_json::to_string(&v)?, |w| {
             let mpm = w.mpm.as_ref()?;
@@ -82,19 +116,14 @@ fn run_model(ctx: &Ctx, model: &str, h: f64, duration: f64) -> Result<(Vec<Sampl
                 .into_iter()
                 .find(|p| p.names.1 == "bottom")?;
             let f = pair.on_points[1];
-            // Second moment of the contact force about its centre: a²/4 for Hertz's
-            // elliptical pressure p0 √(1 − x²/a²).
-            let (mut s0, mut s1, mut s2) = (0.0, 0.0, 0.0);
-            for (q, fq) in &pair.per_point {
-                let x = mpm.x[*q as usize][0];
-                s0 += fq[1];
-                s1 += fq[1] * x;
-                s2 += fq[1] * x * x;
-            }
-            let var = (s2 / s0 - (s1 / s0).powi(2)).max(0.0);
+            let (a_moment, _) = moment_width(
+                pair.per_point
+                    .iter()
+                    .map(|(q, fq)| (mpm.x[*q as usize][0], fq[1])),
+            );
             (hi >= lo && f > 0.0).then_some(Sample {
                 a_range: 0.5 * (hi - lo),
-                a_moment: 2.0 * var.sqrt(),
+                a_moment,
                 force: f,
             })
         })?;
@@ -103,11 +132,11 @@ fn run_model(ctx: &Ctx, model: &str, h: f64, duration: f64) -> Result<(Vec<Sampl
         "{label}: {} penetrations",
         r.summary.max_penetrations
     );
-    Ok((probes.into_iter().flatten().collect(), h / 3.0))
+    Ok((probes.into_iter().flatten().collect(), h / 3.0, r))
 }
 
 /// Least-squares `k` of `F = k a²` (through the origin in a²).
-fn fit_k(points: &[(f64, f64)]) -> f64 {
+pub(super) fn fit_k(points: &[(f64, f64)]) -> f64 {
     let (num, den) = points
         .iter()
         .fold((0.0, 0.0), |(n, d), &(a, f)| (n + f * a * a, d + a.powi(4)));
@@ -136,7 +165,12 @@ pub fn run(ctx: &Ctx) -> Result<Outcome> {
         if ctx.tier == Tier::Quick && model == "neo_hookean" {
             continue; // within 0.7 % of linear at this load (full tier); saves a minute
         }
-        let (samples, _) = run_model(ctx, model, h, duration)?;
+        let load = Load {
+            speed: 0.1,
+            dt: 1e-2,
+            duration,
+        };
+        let (samples, _, _) = run_model(ctx, model, h, load)?;
         // The small-deformation range: a/R between 2 % and 10 %.
         let used: Vec<&Sample> = samples
             .iter()

@@ -13,6 +13,7 @@ mod augury;
 mod buckling;
 mod charts;
 mod compare;
+mod disk;
 mod hertz;
 mod refinement;
 mod report;
@@ -545,6 +546,12 @@ const EXPERIMENTS: &[Experiment] = &[
         section: "both papers",
         title: "Speed vs accuracy: block sliding down a ramp, BFEMP / augury / penalty",
         run: compare::run,
+    },
+    Experiment {
+        name: "disk_plates",
+        section: "both papers",
+        title: "Speed vs accuracy: a disk pressed between plates (Hertz), BFEMP / augury / penalty",
+        run: disk::run,
     },
     Experiment {
         name: "stability",

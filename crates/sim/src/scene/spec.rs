@@ -77,6 +77,20 @@ pub struct AugurySpec {
     /// Settings of the penalty baseline (required with `"contact": "penalty"`).
     #[serde(default)]
     pub penalty: Option<PenaltySpec>,
+    /// How fully prescribed bodies weigh in the correction (default `"lumped"`).
+    #[serde(default)]
+    pub obstacles: AuguryObstaclesSpec,
+}
+
+/// How fully prescribed bodies (plates, walls) enter the augury correction.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum AuguryObstaclesSpec {
+    /// With their lumped masses (the paper's formulation).
+    #[default]
+    Lumped,
+    /// As infinitely heavy (holds normal loads; loses tangential sliding).
+    Kinematic,
 }
 
 fn one_usize() -> usize {

@@ -1,0 +1,365 @@
+//! Speed against accuracy, third scene: **a disk pressed between plates** (BFEMP §6.3's
+//! Brazilian disk, run by every method). A linear-elastic disk (R = 1 m, E = 1e10 Pa, ν = 0.3,
+//! ρ = 100 kg/m²) lies between a fixed plate and one moving down at 1 m/s for 0.03 s (the §6.3
+//! experiment presses at 0.1 m/s for 0.3 s; ten times faster is still quasi-static — the plate
+//! moves at 1e-4 of the wave speed — and keeps an explicit run to 10⁵ steps). The contact force
+//! F on the disk from the fixed plate against the contact half-width a must follow plane Hertz,
+//! `F = k a²` with `k = π E / (4 (1 − ν²) R)`; error `|k_fit / k − 1|` with `k_fit` fitted over
+//! 0.02 ≤ a ≤ 0.1 m, a from the second moment of the contact forces along the plate (the
+//! half-width of an elliptical pressure), for every method.
+//!
+//! BFEMP: an MPM disk (particles on concentric circles, grid h) against FEM plates, d̂ = 1e-4 m,
+//! κ = 1e4 Pa, μ = 1, backward Euler, Δt = 1e-3 s (the §6.3 plate travel per step), forces from
+//! the barrier. Augury (APIC and PIC, friction μ = 1, one iteration, grid spacing = the
+//! contact-zone element size, the plates kinematic — `"obstacles": "kinematic"`: with their
+//! lumped masses the disk sinks into them, 70–140 vertices) and the penalty baseline (stiffness E per unit thickness, band half
+//! the element size): a FEM disk graded to element size s within 0.15 m of the poles
+//! (`fixtures/meshes/make_disk.py`) against FEM plates meshed at s, Δt half the explicit
+//! stability estimate; forces are each vertex's recorded contact force
+//! (`ExplicitBody::contact_force`) on the disk's lower half under the plate.
+
+use anyhow::Result;
+use serde_json::json;
+
+use super::charts::{self, Chart, Series, Style};
+use super::compare::{Point, fronts};
+use super::hertz::{self, A_LO, E, Load, NU, R};
+use super::{Check, Ctx, Outcome, Tier};
+
+/// Top plate speed (m/s).
+const SPEED: f64 = 1.0;
+
+/// A tier's run length and fit window.
+#[derive(Clone, Copy)]
+struct Cfg {
+    /// Duration of each run (s).
+    duration: f64,
+    /// Upper end of the fit window, as Hertz's half-width at that load (m).
+    a_hi: f64,
+}
+/// Initial gap between the disk and each plate (m).
+const GAP: f64 = 1e-4;
+/// Half-width of the plates (m): the contact zone stays well inside.
+const PLATE: f64 = 0.4;
+
+fn k_hertz() -> f64 {
+    std::f64::consts::PI * E / (4.0 * (1.0 - NU * NU) * R)
+}
+
+fn material() -> serde_json::Value {
+    json!({ "model": "linear", "E": E, "nu": NU, "rho": 100.0 })
+}
+
+fn plate(name: &str, y0: f64, y1: f64, s: f64, speed: f64) -> serde_json::Value {
+    let motion = if speed == 0.0 {
+        json!([])
+    } else {
+        json!([{ "until": 1000.0, "velocity": [0.0, -speed] }])
+    };
+    json!({ "kind": "fem", "name": name,
+        "mesh": { "rectangle": { "min": [-PLATE, y0], "max": [PLATE, y1],
+                                 "cells": [(2.0 * PLATE / s).round() as usize, 1] } },
+        "material": material(),
+        "prescribed": [ { "vertices": "all", "motion": motion } ] })
+}
+
+/// The explicit scene with element size `s`; plates `GAP` from the disk's extreme vertices
+/// `(y_lo, y_hi)` (plates far away when `None`).
+fn explicit_scene(
+    s: f64,
+    ys: Option<(f64, f64)>,
+    dt: f64,
+    duration: f64,
+    augury: &serde_json::Value,
+) -> String {
+    let (lo, hi) = ys.map_or((-2.0, 2.0), |(l, h)| (l - GAP, h + GAP));
+    json!({
+        "name": "disk_explicit", "dimension": 2, "method": "augury",
+        "time": { "dt": dt, "duration": duration, "frame_interval": duration / 3.0 },
+        "augury": augury,
+        "bodies": [
+            { "kind": "fem", "name": "disk",
+              "mesh": { "file": { "path": format!("../meshes/disk_{s}.msh") } },
+              "material": material() },
+            plate("bottom", lo - 0.1, lo, s, 0.0),
+            plate("top", hi, hi + 0.1, s, SPEED)
+        ]
+    })
+    .to_string()
+}
+
+/// `(k_fit, samples in the window)` of `(a, F)` samples, fitted over the loads at which Hertz's
+/// half-width is `A_LO ≤ a ≤ a_hi` (a window in load, the same for every method: a method
+/// whose contact zone is too wide lies below Hertz there rather than outside the window).
+fn fit(samples: &[(f64, f64)], a_hi: f64) -> (f64, usize) {
+    let (f_lo, f_hi) = (k_hertz() * A_LO * A_LO, k_hertz() * a_hi * a_hi);
+    let used: Vec<(f64, f64)> = samples
+        .iter()
+        .copied()
+        .filter(|(_, f)| (f_lo..=f_hi).contains(f))
+        .collect();
+    (hertz::fit_k(&used), used.len())
+}
+
+/// One explicit run: `(a, F)` per step (the disk's lower half under the plate).
+#[allow(clippy::too_many_arguments)]
+fn explicit_run(
+    ctx: &Ctx,
+    cfg: Cfg,
+    method: &'static str,
+    s: f64,
+    augury: &serde_json::Value,
+    points: &mut Vec<Point>,
+    curves: &mut Vec<(String, Vec<(f64, f64)>)>,
+    failed: &mut Vec<String>,
+) -> Result<()> {
+    // Place the plates from the mesh's extreme vertices, and take Δt from the stability estimate.
+    let probe = femp::World::<2>::build(femp::scene::parse(
+        &explicit_scene(s, None, 1e-7, cfg.duration, augury),
+        "disk_probe",
+        ctx.root.join("fixtures/scenes"),
+        "disk_probe",
+    )?)?;
+    let ys = probe.fem[0]
+        .x
+        .iter()
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), x| {
+            (l.min(x[1]), h.max(x[1]))
+        });
+    let stable = probe.augury.as_ref().map_or(f64::NAN, |a| a.stable_dt);
+    let dt = 0.5 * stable;
+    let label = format!("disk_{}_s{s}", method.replace(' ', "_"));
+    let (r, samples) = ctx.run_scene_keep::<2, Option<(f64, f64)>>(
+        &label,
+        &explicit_scene(s, Some(ys), dt, cfg.duration, augury),
+        |w| {
+            // The fixed plate's reaction (kinematic in the correction; the facet side of the
+            // penalty pairs): its vertices lie on the contact line, and the plate has no
+            // velocity field of its own for the correction to smooth.
+            let plate = &w.augury.as_ref()?.system.bodies[1];
+            let (a, f) = hertz::moment_width(
+                plate
+                    .x
+                    .iter()
+                    .zip(&plate.contact_force)
+                    .map(|(x, f)| (x[0], -f[1])),
+            );
+            (f > 0.0).then_some((a, f))
+        },
+    )?;
+    let samples: Vec<(f64, f64)> = samples.into_iter().flatten().collect();
+    match r {
+        Ok(r) => {
+            let (k, n) = fit(&samples, cfg.a_hi);
+            if n < 3 {
+                failed.push(format!(
+                    "{method}, s = {s}: only {n} steps in the load window"
+                ));
+            } else {
+                points.push(Point {
+                    method,
+                    h: s,
+                    dt,
+                    wall: r.summary.wall_s,
+                    error: (k / k_hertz() - 1.0).abs(),
+                    penetrations: r.summary.max_penetrations,
+                });
+            }
+            curves.push((format!("{method}, s = {s}"), samples));
+        }
+        Err(e) => failed.push(format!("{method}, s = {s}: {e}")),
+    }
+    Ok(())
+}
+
+/// The experiment.
+pub fn run(ctx: &Ctx) -> Result<Outcome> {
+    let mut out = Outcome::default();
+    // Quick: half the compression (Hertz's a up to 0.06 m), BFEMP on two grids, the explicit
+    // methods on the coarsest mesh. Full: a up to 0.09 m, three resolutions each.
+    let (cfg, grids, sizes): (Cfg, &[f64], &[f64]) = match ctx.tier {
+        Tier::Quick => (
+            Cfg {
+                duration: 0.015,
+                a_hi: 0.06,
+            },
+            &[0.1, 0.05],
+            &[0.02],
+        ),
+        Tier::Full => (
+            Cfg {
+                duration: 0.03,
+                a_hi: 0.09,
+            },
+            &[0.1, 0.05, 0.025],
+            &[0.02, 0.01, 0.005],
+        ),
+    };
+    let mut points = Vec::new();
+    let mut curves = Vec::new();
+    let mut failed = Vec::new();
+    for &h in grids {
+        let load = Load {
+            speed: SPEED,
+            dt: 1e-3,
+            duration: cfg.duration,
+        };
+        let (samples, _, r) = hertz::run_model(ctx, "linear", h, load)?;
+        let samples: Vec<(f64, f64)> = samples.iter().map(|p| (p.a_moment, p.force)).collect();
+        let (k, n) = fit(&samples, cfg.a_hi);
+        if n < 3 {
+            failed.push(format!("BFEMP, h = {h}: only {n} steps in the load window"));
+        } else {
+            points.push(Point {
+                method: "BFEMP (MPM disk)",
+                h,
+                dt: load.dt,
+                wall: r.summary.wall_s,
+                error: (k / k_hertz() - 1.0).abs(),
+                penetrations: r.summary.max_penetrations,
+            });
+        }
+        curves.push((format!("BFEMP, h = {h}"), samples));
+    }
+    for &s in sizes {
+        let variants: [(&'static str, serde_json::Value); 3] = [
+            (
+                "augury APIC",
+                json!({ "grid_spacing": s, "model": "friction", "friction": 1.0, "obstacles": "kinematic" }),
+            ),
+            (
+                "augury PIC",
+                json!({ "grid_spacing": s, "transfer": "pic", "model": "friction", "friction": 1.0,
+                        "obstacles": "kinematic" }),
+            ),
+            (
+                "penalty baseline",
+                json!({ "contact": "penalty", "penalty": { "stiffness": E, "band": 0.5 * s } }),
+            ),
+        ];
+        for (method, aug) in &variants {
+            explicit_run(
+                ctx,
+                cfg,
+                method,
+                s,
+                aug,
+                &mut points,
+                &mut curves,
+                &mut failed,
+            )?;
+        }
+    }
+    let methods = [
+        "BFEMP (MPM disk)",
+        "augury APIC",
+        "augury PIC",
+        "penalty baseline",
+    ];
+    let series = fronts(&points, &methods, "disk: ", &mut out);
+    out.checks.push(Check::count(
+        "disk: BFEMP penetrations, max over all runs and steps",
+        points
+            .iter()
+            .filter(|p| p.method.starts_with("BFEMP"))
+            .map(|p| p.penetrations)
+            .max()
+            .unwrap_or(0),
+        0,
+    ));
+    out.checks.push(Check::count(
+        "disk: runs that stopped or never reached the fit window",
+        failed.len(),
+        0,
+    ));
+    for f in &failed {
+        out.notes.push(format!("Disk run without a result: {f}"));
+    }
+    // Each method's error must shrink from its coarsest to its finest resolution.
+    for m in methods {
+        let mut pts: Vec<&Point> = points.iter().filter(|p| p.method == m).collect();
+        pts.sort_by(|a, b| b.h.total_cmp(&a.h));
+        if let (Some(c), Some(f)) = (pts.first(), pts.last())
+            && pts.len() > 1
+        {
+            out.checks.push(Check::holds(
+                &format!("disk: {m}: |F/a² error| shrinks from {} to {}", c.h, f.h),
+                format!("{:.1} % → {:.1} %", 100.0 * c.error, 100.0 * f.error),
+                "shrinks",
+                "—",
+                f.error < c.error,
+            ));
+        }
+    }
+    out.notes.push(format!(
+        "Disk between plates: error |k_fit/k − 1| of F = k a² (plane Hertz, k = πE/(4(1−ν²)R) = \
+         {:.4e} N/m²) fitted over the loads at which Hertz's half-width is {A_LO}–{} m; a from the \
+         second moment of the contact forces along the fixed plate (BFEMP: the barrier forces on \
+         the particles; explicit methods: the plate's reaction per vertex). {} s of compression. \
+         BFEMP grids h ∈ {grids:?} m; explicit methods' contact-zone element sizes \
+         s ∈ {sizes:?} m.",
+        k_hertz(),
+        cfg.a_hi,
+        cfg.duration
+    ));
+    let png = charts::write_styled(
+        &ctx.charts,
+        &Chart {
+            stem: format!("compare_disk_{}", ctx.tier.name()),
+            title: "Disk pressed between plates: Hertz error against wall time (Pareto fronts)"
+                .into(),
+            x_label: "wall time (s)".into(),
+            y_label: "relative error of F/a²".into(),
+            series,
+        },
+        Style {
+            log_x: true,
+            log_y: true,
+            markers: true,
+            ..Default::default()
+        },
+    )?;
+    out.charts
+        .push(("Speed against accuracy: disk between plates".into(), png));
+    // F against a for every run, with Hertz.
+    let a_max = curves
+        .iter()
+        .flat_map(|c| c.1.iter().map(|p| p.0))
+        .filter(|a| a.is_finite())
+        .fold(0.0f64, f64::max)
+        .min(0.3);
+    let mut fa: Vec<Series> = curves
+        .into_iter()
+        .enumerate()
+        .map(|(c, (label, pts))| Series {
+            label,
+            points: pts.into_iter().filter(|p| p.0 <= a_max).collect(),
+            colour: c,
+            dashed: false,
+        })
+        .collect();
+    fa.push(Series::reference(
+        "Hertz F = πEa²/(4(1−ν²)R)",
+        (0..=50)
+            .map(|i| {
+                let a = a_max * i as f64 / 50.0;
+                (a, k_hertz() * a * a)
+            })
+            .collect(),
+        fa.len(),
+    ));
+    let png = charts::write(
+        &ctx.charts,
+        &Chart {
+            stem: format!("compare_disk_fa_{}", ctx.tier.name()),
+            title: "Disk between plates: contact force against contact half-width, every method"
+                .into(),
+            x_label: "contact half-width a (m)".into(),
+            y_label: "F (N/m)".into(),
+            series: fa,
+        },
+    )?;
+    out.charts
+        .push(("Force against half-width, every run".into(), png));
+    Ok(out)
+}
