@@ -338,11 +338,17 @@ pub fn run(ctx: &Ctx) -> Result<Outcome> {
             dashed: false,
         })
         .collect();
+    // Hertz up to the largest measured load.
+    let f_max = fa
+        .iter()
+        .flat_map(|c| c.points.iter().map(|p| p.1))
+        .fold(0.0f64, f64::max);
+    let a_ref = a_max.min((1.1 * f_max / k_hertz()).sqrt());
     fa.push(Series::reference(
         "Hertz F = πEa²/(4(1−ν²)R)",
         (0..=50)
             .map(|i| {
-                let a = a_max * i as f64 / 50.0;
+                let a = a_ref * i as f64 / 50.0;
                 (a, k_hertz() * a * a)
             })
             .collect(),

@@ -12,6 +12,7 @@
 mod augury;
 mod buckling;
 mod charts;
+mod compact;
 mod compare;
 mod disk;
 mod hertz;

@@ -265,8 +265,9 @@ pub fn publish(out: &Path, docs: &Path) -> Result<()> {
     std::fs::create_dir_all(&charts)?;
     let report = std::fs::read_to_string(out.join("README.md"))?;
     let mut keep = std::collections::BTreeSet::new();
-    // Only what the report shows: the PNGs and GIFs (each chart's SVG stays in the run's output
-    // directory, `OUT/charts/`, to keep the committed images small).
+    // Only what the report shows: the PNGs (as 256-colour indexed PNGs) and GIFs (each chart's
+    // SVG and full-colour PNG stay in the run's output directory, `OUT/charts/`, to keep the
+    // committed images small).
     for part in report.split("](charts/").skip(1) {
         if let Some(name) = part.split(')').next() {
             keep.insert(name.to_string());
@@ -275,8 +276,12 @@ pub fn publish(out: &Path, docs: &Path) -> Result<()> {
     for name in &keep {
         let src = out.join("charts").join(name);
         if src.exists() {
-            std::fs::copy(&src, charts.join(name))
-                .with_context(|| format!("copying {}", src.display()))?;
+            if name.ends_with(".png") {
+                super::compact::compact_png(&src, &charts.join(name))?;
+            } else {
+                std::fs::copy(&src, charts.join(name))
+                    .with_context(|| format!("copying {}", src.display()))?;
+            }
         }
     }
     for e in std::fs::read_dir(&charts)?.flatten() {
