@@ -42,12 +42,12 @@ fn quantise(rgba: &[u8]) -> (Vec<[u8; 4]>, Vec<u8>) {
     let mut palette = Vec::new();
     for c in rgba.chunks_exact(4) {
         let c = [c[0], c[1], c[2], c[3]];
-        if !exact.contains_key(&c) {
+        if let std::collections::hash_map::Entry::Vacant(e) = exact.entry(c) {
             if palette.len() == 256 {
                 palette.clear();
                 break;
             }
-            exact.insert(c, palette.len() as u8);
+            e.insert(palette.len() as u8);
             palette.push(c);
         }
     }
