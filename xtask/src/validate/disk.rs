@@ -101,6 +101,18 @@ fn fit(samples: &[(f64, f64)], a_hi: f64) -> (f64, usize) {
     (hertz::fit_k(&used), used.len())
 }
 
+/// `a` at the largest load of a run against Hertz's `a` at that load, as a note.
+fn width_note(what: &str, samples: &[(f64, f64)]) -> String {
+    match samples.iter().max_by(|x, y| x.1.total_cmp(&y.1)) {
+        Some(&(a, f)) => format!(
+            "{what}: at its largest load F = {f:.3e} N/m the contact half-width is a = {a:.4} m \
+             (Hertz: {:.4} m).",
+            (f / k_hertz()).sqrt()
+        ),
+        None => format!("{what}: no contact force recorded."),
+    }
+}
+
 /// One explicit run: `(a, F)` per step (the disk's lower half under the plate).
 #[allow(clippy::too_many_arguments)]
 fn explicit_run(
@@ -112,6 +124,7 @@ fn explicit_run(
     points: &mut Vec<Point>,
     curves: &mut Vec<(String, Vec<(f64, f64)>)>,
     failed: &mut Vec<String>,
+    notes: &mut Vec<String>,
 ) -> Result<()> {
     // Place the plates from the mesh's extreme vertices, and take Δt from the stability estimate.
     let probe = femp::World::<2>::build(femp::scene::parse(
@@ -165,6 +178,7 @@ fn explicit_run(
                     penetrations: r.summary.max_penetrations,
                 });
             }
+            notes.push(width_note(&format!("{method}, s = {s}"), &samples));
             curves.push((format!("{method}, s = {s}"), samples));
         }
         Err(e) => failed.push(format!("{method}, s = {s}: {e}")),
@@ -219,6 +233,8 @@ pub fn run(ctx: &Ctx) -> Result<Outcome> {
                 penetrations: r.summary.max_penetrations,
             });
         }
+        out.notes
+            .push(width_note(&format!("BFEMP, h = {h}"), &samples));
         curves.push((format!("BFEMP, h = {h}"), samples));
     }
     for &s in sizes {
@@ -247,6 +263,7 @@ pub fn run(ctx: &Ctx) -> Result<Outcome> {
                 &mut points,
                 &mut curves,
                 &mut failed,
+                &mut out.notes,
             )?;
         }
     }

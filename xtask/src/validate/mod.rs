@@ -302,6 +302,14 @@ const PICTURES: &[Pictured] = &[
         up: None,
     },
     Pictured {
+        label: "refinement_n8_ppc16",
+        caption: "MPM box settling on a FEM box, 8 cells across",
+        keys: 3,
+        last_only: false,
+        gif: false,
+        up: None,
+    },
+    Pictured {
         label: "compare_bfemp_h0.125_dt0.01",
         caption: "Sliding block, BFEMP (MPM block on a FEM ramp), h = 0.125",
         keys: 3,
