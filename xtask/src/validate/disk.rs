@@ -345,13 +345,19 @@ pub fn run(ctx: &Ctx) -> Result<Outcome> {
         .filter(|a| a.is_finite())
         .fold(0.0f64, f64::max)
         .min(0.3);
+    // One colour per method (in `methods`' order; the label names the resolution).
+    let colour = |label: &str| {
+        ["BFEMP", "augury APIC", "augury PIC", "penalty"]
+            .iter()
+            .position(|m| label.starts_with(m))
+            .unwrap_or(0)
+    };
     let mut fa: Vec<Series> = curves
         .into_iter()
-        .enumerate()
-        .map(|(c, (label, pts))| Series {
+        .map(|(label, pts)| Series {
+            colour: colour(&label),
             label,
             points: pts.into_iter().filter(|p| p.0 <= a_max).collect(),
-            colour: c,
             dashed: false,
         })
         .collect();
@@ -369,7 +375,7 @@ pub fn run(ctx: &Ctx) -> Result<Outcome> {
                 (a, k_hertz() * a * a)
             })
             .collect(),
-        fa.len(),
+        4,
     ));
     let png = charts::write(
         &ctx.charts,
