@@ -133,6 +133,42 @@ pub(super) fn fronts(
     series
 }
 
+/// The largest penetration count over the runs of methods whose name starts with `prefix`.
+pub(super) fn max_penetrations(points: &[Point], prefix: &str) -> usize {
+    points
+        .iter()
+        .filter(|p| p.method.starts_with(prefix))
+        .map(|p| p.penetrations)
+        .max()
+        .unwrap_or(0)
+}
+
+/// The speed-against-accuracy chart (log–log, markers) of `series` as `stem` (tier appended).
+pub(super) fn pareto_chart(
+    ctx: &Ctx,
+    stem: &str,
+    title: &str,
+    y_label: &str,
+    series: Vec<Series>,
+) -> Result<std::path::PathBuf> {
+    charts::write_styled(
+        &ctx.charts,
+        &Chart {
+            stem: format!("{stem}_{}", ctx.tier.name()),
+            title: title.into(),
+            x_label: "wall time (s)".into(),
+            y_label: y_label.into(),
+            series,
+        },
+        Style {
+            log_x: true,
+            log_y: true,
+            markers: true,
+            ..Default::default()
+        },
+    )
+}
+
 fn com_x(masses: &[f64], xs: impl Iterator<Item = f64>) -> f64 {
     let m: f64 = masses.iter().sum();
     xs.zip(masses).map(|(x, mm)| x * mm).sum::<f64>() / m
@@ -217,12 +253,7 @@ pub fn run(ctx: &Ctx) -> Result<Outcome> {
     let series = fronts(&points, &methods, "", &mut out);
     out.checks.push(Check::count(
         "BFEMP: penetrations, max over all runs and steps",
-        points
-            .iter()
-            .filter(|p| p.method == "BFEMP")
-            .map(|p| p.penetrations)
-            .max()
-            .unwrap_or(0),
+        max_penetrations(&points, "BFEMP"),
         0,
     ));
     out.notes.push(format!(
@@ -231,21 +262,12 @@ pub fn run(ctx: &Ctx) -> Result<Outcome> {
          that wall time, 1 core-pair); every run is in the table. Sweeps: h ∈ {hs:?}; BFEMP \
          Δt ∈ {bfemp_dts:?} s; explicit methods Δt ∈ {fractions:?} × the stability estimate."
     ));
-    let png = charts::write_styled(
-        &ctx.charts,
-        &Chart {
-            stem: format!("compare_{}", ctx.tier.name()),
-            title: "Sliding block: error against wall time (Pareto fronts)".into(),
-            x_label: "wall time (s)".into(),
-            y_label: "relative displacement error".into(),
-            series,
-        },
-        Style {
-            log_x: true,
-            log_y: true,
-            markers: true,
-            ..Default::default()
-        },
+    let png = pareto_chart(
+        ctx,
+        "compare",
+        "Sliding block: error against wall time (Pareto fronts)",
+        "relative displacement error",
+        series,
     )?;
     out.charts
         .push(("Speed against accuracy: sliding block".into(), png));
@@ -389,12 +411,7 @@ fn impact(ctx: &Ctx, out: &mut Outcome) -> Result<()> {
     let series = fronts(&points, &methods, "impact: ", out);
     out.checks.push(Check::count(
         "impact: BFEMP penetrations, max over all runs and steps",
-        points
-            .iter()
-            .filter(|p| p.method.starts_with("BFEMP"))
-            .map(|p| p.penetrations)
-            .max()
-            .unwrap_or(0),
+        max_penetrations(&points, "BFEMP"),
         0,
     ));
     // The augury paper's claim (§3.1–3.2): APIC lets bodies separate, PIC makes them stick.
@@ -431,21 +448,12 @@ fn impact(ctx: &Ctx, out: &mut Outcome) -> Result<()> {
          t = {IMPACT_END} s (the continuum exchanges the velocities exactly). Sweeps: h ∈ {hs:?}; \
          BFEMP Δt ∈ {bfemp_dts:?} s; explicit methods Δt ∈ {fractions:?} × the stability estimate."
     ));
-    let png = charts::write_styled(
-        &ctx.charts,
-        &Chart {
-            stem: format!("compare_impact_{}", ctx.tier.name()),
-            title: "Head-on impact of two bars: error against wall time (Pareto fronts)".into(),
-            x_label: "wall time (s)".into(),
-            y_label: "relative rebound-velocity error".into(),
-            series,
-        },
-        Style {
-            log_x: true,
-            log_y: true,
-            markers: true,
-            ..Default::default()
-        },
+    let png = pareto_chart(
+        ctx,
+        "compare_impact",
+        "Head-on impact of two bars: error against wall time (Pareto fronts)",
+        "relative rebound-velocity error",
+        series,
     )?;
     out.charts
         .push(("Speed against accuracy: head-on impact".into(), png));

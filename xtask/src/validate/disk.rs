@@ -21,8 +21,8 @@
 use anyhow::Result;
 use serde_json::json;
 
-use super::charts::{self, Chart, Series, Style};
-use super::compare::{Point, fronts};
+use super::charts::{self, Chart, Series};
+use super::compare::{Point, fronts, max_penetrations, pareto_chart};
 use super::hertz::{self, A_LO, E, Load, NU, R};
 use super::{Check, Ctx, Outcome, Tier};
 
@@ -276,12 +276,7 @@ pub fn run(ctx: &Ctx) -> Result<Outcome> {
     let series = fronts(&points, &methods, "disk: ", &mut out);
     out.checks.push(Check::count(
         "disk: BFEMP penetrations, max over all runs and steps",
-        points
-            .iter()
-            .filter(|p| p.method.starts_with("BFEMP"))
-            .map(|p| p.penetrations)
-            .max()
-            .unwrap_or(0),
+        max_penetrations(&points, "BFEMP"),
         0,
     ));
     out.checks.push(Check::count(
@@ -319,22 +314,12 @@ pub fn run(ctx: &Ctx) -> Result<Outcome> {
         cfg.a_hi,
         cfg.duration
     ));
-    let png = charts::write_styled(
-        &ctx.charts,
-        &Chart {
-            stem: format!("compare_disk_{}", ctx.tier.name()),
-            title: "Disk pressed between plates: Hertz error against wall time (Pareto fronts)"
-                .into(),
-            x_label: "wall time (s)".into(),
-            y_label: "relative error of F/a²".into(),
-            series,
-        },
-        Style {
-            log_x: true,
-            log_y: true,
-            markers: true,
-            ..Default::default()
-        },
+    let png = pareto_chart(
+        ctx,
+        "compare_disk",
+        "Disk pressed between plates: Hertz error against wall time (Pareto fronts)",
+        "relative error of F/a²",
+        series,
     )?;
     out.charts
         .push(("Speed against accuracy: disk between plates".into(), png));
