@@ -20,11 +20,15 @@ fn run<const D: usize>(n: usize, sorted: bool) {
         let st = grid.stencils(&x).unwrap();
         x = st.order().iter().map(|&p| x[p as usize]).collect();
     }
-    let m = vec![1.0; n];
+    // Random values, as in the bench (all-zero vectors would map to the kernel's shared zero
+    // page and never miss the cache).
+    let m: Vec<f64> = (0..n).map(|_| rng.random_range(0.5..1.5)).collect();
     let v: Vec<SVector<f64, D>> = (0..n)
         .map(|_| SVector::from_fn(|_, _| rng.random_range(-1.0..1.0)))
         .collect();
-    let b = vec![SMatrix::<f64, D, D>::zeros(); n];
+    let b: Vec<SMatrix<f64, D, D>> = (0..n)
+        .map(|_| SMatrix::from_fn(|_, _| rng.random_range(-0.01..0.01)))
+        .collect();
     let mut st = grid.stencils(&x).unwrap();
     let nn = st.num_nodes();
     let mut gm = vec![0.0; nn];
