@@ -524,12 +524,45 @@ impl<const D: usize> ContactPotential<D> {
         boundary: &[SVector<f64, D>],
         out: &mut Vec<TermDerivatives<D>>,
     ) {
+        self.derivatives_as(self.hessian, false, terms, particles, boundary, out);
+    }
+
+    /// Gradient and **exact** Hessian `ω [b''(d) ∇d ∇dᵀ + b'(d) ∇²d]` of every term (not
+    /// projected, whatever [`Self::hessian`] says; indefinite in general), in parallel, into
+    /// `out` (cleared). For Newton iterations that use the exact Hessian when the assembled
+    /// system is positive definite.
+    pub fn exact_derivatives(
+        &self,
+        terms: &[ContactTerm],
+        particles: &[SVector<f64, D>],
+        boundary: &[SVector<f64, D>],
+        out: &mut Vec<TermDerivatives<D>>,
+    ) {
+        self.derivatives_as(
+            BarrierHessian::Projected,
+            true,
+            terms,
+            particles,
+            boundary,
+            out,
+        );
+    }
+
+    fn derivatives_as(
+        &self,
+        mode: BarrierHessian,
+        exact_only: bool,
+        terms: &[ContactTerm],
+        particles: &[SVector<f64, D>],
+        boundary: &[SVector<f64, D>],
+        out: &mut Vec<TermDerivatives<D>>,
+    ) {
         terms
             .par_iter()
             .with_min_len(256)
             .map(|t| {
                 let p = &particles[t.particle as usize];
-                let exact = self.hessian == BarrierHessian::Projected;
+                let exact = mode == BarrierHessian::Projected;
                 let (s, gs, hs) = Self::feature_sq_dist_with(p, t.feature, boundary, exact);
                 let (_, bs, bss) = self.barrier.sq_derivatives(s);
                 let (vertices, nv) = t.feature.vertices();
@@ -544,7 +577,7 @@ impl<const D: usize> ContactPotential<D> {
                 for i in 0..n {
                     d.grad[i] = gs[i] * (t.weight * bs);
                 }
-                match self.hessian {
+                match mode {
                     BarrierHessian::GaussNewton => {
                         // b''(d) ∇d ∇dᵀ with ∇d = ∇s / (2d): b''(d) / (4s) ∇s ∇sᵀ, weighted.
                         let b2 = self.barrier.second(s.sqrt());
@@ -562,7 +595,9 @@ impl<const D: usize> ContactPotential<D> {
                                     (gs[i] * gs[j].transpose() * bss + hs[i][j] * bs) * t.weight;
                             }
                         }
-                        project_psd(&mut d.hess, n * D);
+                        if !exact_only {
+                            project_psd(&mut d.hess, n * D);
+                        }
                     }
                 }
                 d

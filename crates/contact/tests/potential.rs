@@ -352,6 +352,81 @@ fn gauss_newton_hessian_is_the_exact_one_without_the_distance_curvature() {
     check_gauss_newton(&pot, &near_3d, &v);
 }
 
+/// `exact_derivatives`: the same gradient as `derivatives`, and the Hessian equal to the finite
+/// difference of that gradient (not projected: indefinite at these points), whatever
+/// approximation the potential is configured with.
+fn check_exact<const D: usize>(
+    pot: &ContactPotential<D>,
+    particles: &[SVector<f64, D>],
+    v: &[SVector<f64, D>],
+) {
+    let (np, nb) = (particles.len(), v.len());
+    let w: Vec<f64> = (0..np).map(|k| 0.2 + 0.1 * k as f64).collect();
+    let mut c = Candidates::default();
+    broad_phase::candidates_within(particles, v, pot.topology.facets(), 0.1, &mut c);
+    let mut terms = Vec::new();
+    pot.collect_terms(particles, &w, v, &c, &mut terms).unwrap();
+    assert!(terms.len() >= np, "every particle is within d̂");
+    let (mut d, mut e) = (Vec::new(), Vec::new());
+    pot.derivatives(&terms, particles, v, &mut d);
+    pot.exact_derivatives(&terms, particles, v, &mut e);
+    let (g, hp) = accumulate(&d, np, nb);
+    let (ge, h) = accumulate(&e, np, nb);
+    assert!((&g - &ge).amax() <= 1e-14 * g.amax(), "same gradient");
+    let x0 = pack(particles, v);
+    let grad = |x: &DVector<f64>| {
+        let all: Vec<SVector<f64, D>> = x
+            .as_slice()
+            .chunks(D)
+            .map(SVector::<f64, D>::from_column_slice)
+            .collect();
+        let mut dd = Vec::new();
+        pot.exact_derivatives(&terms, &all[..np], &all[np..], &mut dd);
+        accumulate(&dd, np, nb).0
+    };
+    let hfd = femp_testkit::fd_jacobian(grad, &x0, 1e-7);
+    let fd = (&hfd + hfd.transpose()) * 0.5;
+    assert!(
+        (&h - &fd).amax() <= 1e-5 * h.amax(),
+        "exact Hessian differs from finite differences by {:.3e} (scale {:.3e})",
+        (&h - &fd).amax(),
+        h.amax()
+    );
+    // Not vacuous: indefinite here, so it differs from the PSD approximation.
+    assert!(h.clone().symmetric_eigen().eigenvalues.min() < -1e-6 * h.amax());
+    assert!((&h - &hp).amax() > 1e-6 * h.amax());
+}
+
+#[test]
+fn exact_barrier_hessian_matches_finite_differences() {
+    for hessian in [BarrierHessian::Projected, BarrierHessian::GaussNewton] {
+        let (v, f) = square();
+        let pot = ContactPotential::new(
+            LogBarrier::new(0.1, 1e2).unwrap(),
+            BoundaryTopology::<2>::new(&f, 4).unwrap(),
+        )
+        .with_hessian(hessian);
+        let near_2d = [
+            Vector2::new(1.03, 1.04),
+            Vector2::new(0.3, 1.05),
+            Vector2::new(-1.02, 0.41),
+        ];
+        check_exact(&pot, &near_2d, &v);
+        let (v, f) = cube();
+        let pot = ContactPotential::new(
+            LogBarrier::new(0.1, 1e2).unwrap(),
+            BoundaryTopology::<3>::new(&f, 8).unwrap(),
+        )
+        .with_hessian(hessian);
+        let near_3d = [
+            Vector3::new(-0.02, -0.03, 1.05),
+            Vector3::new(1.04, 0.97, 0.5),
+            Vector3::new(0.4, 0.55, 1.03),
+        ];
+        check_exact(&pot, &near_3d, &v);
+    }
+}
+
 #[test]
 fn particle_weights_are_cross_sections() {
     // 2D: a disk of area V has diameter 2√(V/π); 3D: a ball of volume V has a great circle of

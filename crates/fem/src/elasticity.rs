@@ -196,6 +196,29 @@ impl<const D: usize, M: Hyperelastic<D>> ElasticBody<D, M> {
         dof_offset: usize,
         out: &mut Vec<Triplet>,
     ) -> Result<(), FemError> {
+        self.triplets_with(x, scale, dof_offset, true, out)
+    }
+
+    /// The exact (unprojected, possibly indefinite) Hessian of `scale · Ψ`, laid out like
+    /// [`Self::hessian_triplets`].
+    pub fn exact_hessian_triplets(
+        &self,
+        x: &[SVector<f64, D>],
+        scale: f64,
+        dof_offset: usize,
+        out: &mut Vec<Triplet>,
+    ) -> Result<(), FemError> {
+        self.triplets_with(x, scale, dof_offset, false, out)
+    }
+
+    fn triplets_with(
+        &self,
+        x: &[SVector<f64, D>],
+        scale: f64,
+        dof_offset: usize,
+        project: bool,
+        out: &mut Vec<Triplet>,
+    ) -> Result<(), FemError> {
         self.check(x)?;
         let k = (D + 1) * (D + 1) * D * D;
         out.resize(self.num_hessian_triplets(), Triplet::default());
@@ -204,7 +227,11 @@ impl<const D: usize, M: Hyperelastic<D>> ElasticBody<D, M> {
             .with_min_len(256)
             .for_each(|(e, chunk)| {
                 let mut blocks = [SMatrix::<f64, D, D>::zeros(); 16];
-                self.element_hessian(e, x, scale, &mut blocks);
+                if project {
+                    self.element_hessian(e, x, scale, &mut blocks);
+                } else {
+                    self.element_hessian_exact(e, x, scale, &mut blocks);
+                }
                 let c = &self.cells[e];
                 let mut t = 0;
                 for i in 0..=D {
@@ -238,6 +265,26 @@ impl<const D: usize, M: Hyperelastic<D>> ElasticBody<D, M> {
     ) {
         let el = &self.elements[e];
         let t = self.material.tangent_psd(&self.deformation_gradient(e, x));
+        chain_hessian(
+            &t,
+            el.gradients(),
+            el.volume * scale,
+            &mut blocks[..(D + 1) * (D + 1)],
+        );
+    }
+
+    /// Exact (unprojected) Hessian blocks of `scale · V_e ψ(F_e)` for element `e`, laid out like
+    /// [`Self::element_hessian`].
+    #[inline]
+    pub fn element_hessian_exact(
+        &self,
+        e: usize,
+        x: &[SVector<f64, D>],
+        scale: f64,
+        blocks: &mut [SMatrix<f64, D, D>; 16],
+    ) {
+        let el = &self.elements[e];
+        let t = self.material.tangent(&self.deformation_gradient(e, x));
         chain_hessian(
             &t,
             el.gradients(),

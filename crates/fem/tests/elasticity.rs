@@ -207,6 +207,67 @@ proptest! {
 
 /// Patch test: under an affine deformation x = A X + b every element has F = A, the stress is
 /// P(A) exactly, and the internal forces at interior vertices vanish.
+/// Mesh-level exact Hessian: the finite difference of the gradient, laid out like the
+/// projected one, and different from it where elements are compressed (2D and 3D).
+#[test]
+fn body_exact_hessian_matches_finite_differences() {
+    fn check<const D: usize>(mesh: &Mesh<D>) {
+        let body =
+            ElasticBody::new(mesh, NeoHookean::from_young_poisson(1e3, 0.3).unwrap()).unwrap();
+        // Squeezed to 45 % along x and sheared, with a small wobble: the neo-Hookean tangent
+        // has negative modes there.
+        let x: Vec<SVector<f64, D>> = mesh
+            .vertices()
+            .iter()
+            .enumerate()
+            .map(|(i, v)| {
+                let mut y = *v;
+                y[0] = 0.45 * v[0] + 0.3 * v[1];
+                y[1] += 0.02 * ((i * 7 % 5) as f64 - 2.0);
+                y
+            })
+            .collect();
+        let x0 = flat(&x);
+        let cell = std::cell::RefCell::new(body.clone());
+        let grad = |xv: &DVector<f64>| {
+            let mut g = vec![SVector::<f64, D>::zeros(); x.len()];
+            cell.borrow_mut()
+                .add_gradient(&unflat::<D>(xv), 1.5, &mut g)
+                .unwrap();
+            flat(&g)
+        };
+        let n = D * x.len();
+        let dense = |trip: &[femp_fem::Triplet]| {
+            let mut h = DMatrix::<f64>::zeros(n, n);
+            for t in trip {
+                h[(t.row, t.col)] += t.value;
+            }
+            h
+        };
+        let (mut te, mut tp) = (Vec::new(), Vec::new());
+        body.exact_hessian_triplets(&x, 1.5, 0, &mut te).unwrap();
+        body.hessian_triplets(&x, 1.5, 0, &mut tp).unwrap();
+        assert_eq!(te.len(), tp.len());
+        for (a, b) in te.iter().zip(&tp) {
+            assert_eq!((a.row, a.col), (b.row, b.col), "same layout");
+        }
+        let (he, hp) = (dense(&te), dense(&tp));
+        let hfd = fd_jacobian(grad, &x0, 1e-7);
+        let scale = he.amax();
+        assert!(
+            (&he - &hfd).amax() <= 1e-5 * scale,
+            "exact Hessian differs from fd by {:.3e} (scale {scale:.3e})",
+            (&he - &hfd).amax()
+        );
+        assert!(
+            (&he - &hp).amax() > 1e-3 * scale,
+            "the projection must be active in this test"
+        );
+    }
+    check(&generate::rectangle(Vector2::zeros(), Vector2::new(1.0, 0.6), 4, 3).unwrap());
+    check(&generate::cuboid(Vector3::zeros(), Vector3::new(1.0, 0.6, 0.5), 2, 2, 2).unwrap());
+}
+
 #[test]
 fn patch_test_2d_and_3d() {
     let m2 = generate::disk(Vector2::new(0.3, -0.1), 1.0, 5).unwrap();

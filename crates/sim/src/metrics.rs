@@ -41,6 +41,9 @@ pub struct Metrics {
     pub backtracks: usize,
     /// Newton iterations whose initial step was cut by CCD.
     pub ccd_limited: usize,
+    /// Newton iterations that factorised the exact Hessian (`solver.projection:
+    /// "when_indefinite"`; 0 with the default `"always"`).
+    pub exact_hessians: usize,
     /// Wall-clock seconds of the step.
     pub wall_s: f64,
 }
@@ -56,7 +59,7 @@ pub fn csv_header<const D: usize>() -> String {
         h.push_str(",angular_momentum");
     }
     h.push_str(
-        ",min_distance,penetrations,newton_iterations,friction_iterations,contact_terms,backtracks,ccd_limited,wall_s",
+        ",min_distance,penetrations,newton_iterations,friction_iterations,contact_terms,backtracks,ccd_limited,exact_hessians,wall_s",
     );
     h
 }
@@ -89,7 +92,7 @@ impl Metrics {
             r.push_str(&format!(",{:.12e}", self.angular_momentum[2]));
         }
         r.push_str(&format!(
-            ",{:.9e},{},{},{},{},{},{},{:.6e}",
+            ",{:.9e},{},{},{},{},{},{},{},{:.6e}",
             self.min_distance,
             self.penetrations,
             self.newton_iterations,
@@ -97,6 +100,7 @@ impl Metrics {
             self.contact_terms,
             self.backtracks,
             self.ccd_limited,
+            self.exact_hessians,
             self.wall_s
         ));
         r

@@ -182,6 +182,12 @@ pub struct StepObjective<'a, const D: usize> {
     /// while `generation` equals `.1`: Newton asks for the Hessian at the same x right after
     /// the gradient, and the term derivatives carry both.
     contact_cache: (Vec<[Vec<TermDerivatives<D>>; 2]>, Option<u64>),
+    /// Whether the cached barrier derivatives carry the exact Hessian (else the pair's
+    /// projected or Gauss–Newton one).
+    contact_cache_exact: bool,
+    /// The gradient computes the barrier's exact Hessian for the cache (the solver asks for
+    /// [`Objective::exact_hessian`] first: `HessianStrategy::ExactWhenDefinite`).
+    pub(crate) prefer_exact: bool,
     /// Where the time went.
     pub(crate) timing: ObjectiveTiming,
     /// Number of active contact terms and smallest contact distance at the last gradient.
@@ -233,6 +239,8 @@ impl<'a, const D: usize> StepObjective<'a, D> {
                 (0..pairs.len()).map(|_| [Vec::new(), Vec::new()]).collect(),
                 None,
             ),
+            contact_cache_exact: false,
+            prefer_exact: false,
             timing: ObjectiveTiming::default(),
             last_contacts: (0, f64::INFINITY),
         }
@@ -360,7 +368,7 @@ impl<'a, const D: usize> StepObjective<'a, D> {
     /// Add the contact (barrier and lagged friction) gradient at the unpacked state into `g`,
     /// keeping the term derivatives for the Hessian at the same state. Returns the number of
     /// active terms and the smallest contact distance.
-    fn contact_gradient(&mut self, g: &mut [f64]) -> (usize, f64) {
+    fn contact_gradient(&mut self, g: &mut [f64], exact: bool) -> (usize, f64) {
         let mut count = 0;
         let mut dmin = f64::INFINITY;
         let mut cache = std::mem::take(&mut self.contact_cache.0);
@@ -377,8 +385,17 @@ impl<'a, const D: usize> StepObjective<'a, D> {
             }
             let pair = &self.pairs[k];
             let pts = self.points(pair);
-            pair.potential
-                .derivatives(&self.terms, &pts, &self.fem_x[pair.facets_of], bar);
+            if exact {
+                pair.potential.exact_derivatives(
+                    &self.terms,
+                    &pts,
+                    &self.fem_x[pair.facets_of],
+                    bar,
+                );
+            } else {
+                pair.potential
+                    .derivatives(&self.terms, &pts, &self.fem_x[pair.facets_of], bar);
+            }
             self.scatter(k, bar, Some(g), None);
             if !self.friction[k].is_empty() {
                 let (dp, db) = self.displacements(&self.pairs[k]);
@@ -387,7 +404,113 @@ impl<'a, const D: usize> StepObjective<'a, D> {
             }
         }
         self.contact_cache = (cache, Some(self.generation));
+        self.contact_cache_exact = exact;
         (count, dmin)
+    }
+
+    /// The Hessian with PSD-projected element, particle and barrier terms, or (`exact`) the
+    /// exact one. Friction's lagged operator is PSD by construction and the same in both.
+    fn build_hessian(&mut self, x: &[f64], h: &mut Triplets, exact: bool) {
+        if !exact {
+            // The solver asks for the projected Hessian: the exact one was indefinite (or not
+            // wanted), and the solve stays projected — stop computing exact contact terms.
+            self.prefer_exact = false;
+        }
+        self.unpack(x);
+        let mut clock = Instant::now();
+        let w = self.w;
+        for d in 0..self.n_dofs {
+            h.push(d, d, self.mass[d]);
+        }
+        for p in self.penalties {
+            for a in 0..D {
+                for b in 0..D {
+                    h.push(p.node * D + a, p.node * D + b, p.k * p.n[a] * p.n[b]);
+                }
+            }
+        }
+        if let Some(m) = self.mpm {
+            let st = &m.stencils;
+            self.gh.reset(
+                self.n_grid,
+                st.stencil_axes(),
+                st.grid().kernel().nodes_per_axis(),
+            );
+            // Particle Hessians V_p Gᵀ A_p G (A_p the PSD-projected tangent), particle groups
+            // in parallel, each block added into its fixed slot.
+            let nn = st.stencil_len();
+            let fq = &self.fq;
+            let (slots, pair_slot) = (self.gh.slots, &self.gh.pair_slot);
+            st.par_scatter_rows(&mut self.gh.rows, slots, |particles, rows| {
+                // Per group (hundreds of particles), not per particle.
+                let mut gvec = vec![SVector::<f64, D>::zeros(); nn];
+                let mut ids = vec![0usize; nn];
+                let mut blocks = vec![SMatrix::<f64, D, D>::zeros(); nn * nn];
+                for &p in particles {
+                    let p = p as usize;
+                    let material = &m.bodies[m.body[p] as usize].material;
+                    let t: Tangent<D> = if exact {
+                        material.tangent(&fq[p])
+                    } else {
+                        material.tangent_psd(&fq[p])
+                    };
+                    let ft = m.f[p].transpose();
+                    let mut k = 0;
+                    st.particle(p).for_each(|i, _, grad| {
+                        ids[k] = i;
+                        gvec[k] = ft * grad;
+                        k += 1;
+                    });
+                    chain_hessian(&t, &gvec, w * m.volume[p], &mut blocks);
+                    for a in 0..nn {
+                        let row = rows.row(ids[a]);
+                        for b in 0..nn {
+                            let slot = &mut row[pair_slot[a * nn + b] as usize];
+                            slot.m += blocks[a * nn + b];
+                            slot.nbr = ids[b] as u32;
+                        }
+                    }
+                }
+            });
+        }
+        self.timing.mpm_s += lap(&mut clock);
+        for b in 0..self.fem.len() {
+            if self.fem[b].fully_prescribed {
+                continue;
+            }
+            let mut trip = std::mem::take(&mut self.fem_trip);
+            let el = &self.fem[b].elastic;
+            let built = if exact {
+                el.exact_hessian_triplets(&self.fem_x[b], w, self.fem_offset[b], &mut trip)
+            } else {
+                el.hessian_triplets(&self.fem_x[b], w, self.fem_offset[b], &mut trip)
+            };
+            if built.is_ok() {
+                h.reserve(trip.len());
+                for t in &trip {
+                    h.push(t.row, t.col, t.value);
+                }
+            }
+            self.fem_trip = trip;
+        }
+        self.timing.fem_s += lap(&mut clock);
+        if self.contact_cache.1 != Some(self.generation) || self.contact_cache_exact != exact {
+            // No gradient at this x and friction operator yet, or it kept the other kind of
+            // barrier Hessian: compute the derivatives.
+            let mut scratch = vec![0.0; self.n_dofs];
+            self.contact_gradient(&mut scratch, exact);
+        }
+        let cache = std::mem::take(&mut self.contact_cache.0);
+        for (k, [bar, fric]) in cache.iter().enumerate() {
+            self.scatter(k, bar, None, Some(h));
+            self.scatter(k, fric, None, Some(h));
+        }
+        self.contact_cache.0 = cache;
+        self.timing.contact_s += lap(&mut clock);
+        if self.mpm.is_some() {
+            self.gh.emit(h);
+        }
+        self.timing.emit_s += lap(&mut clock);
     }
 
     /// Recompute the lagged friction operator at `x` (Algorithm 1, lines 5 and 9).
@@ -663,99 +786,18 @@ impl<const D: usize> Objective for StepObjective<'_, D> {
             }
         }
         self.timing.fem_s += lap(&mut clock);
-        let (count, dmin) = self.contact_gradient(g);
+        let (count, dmin) = self.contact_gradient(g, self.prefer_exact);
         self.timing.contact_s += lap(&mut clock);
         self.last_contacts = (count, dmin);
     }
 
     fn hessian(&mut self, x: &[f64], h: &mut Triplets) {
-        self.unpack(x);
-        let mut clock = Instant::now();
-        let w = self.w;
-        for d in 0..self.n_dofs {
-            h.push(d, d, self.mass[d]);
-        }
-        for p in self.penalties {
-            for a in 0..D {
-                for b in 0..D {
-                    h.push(p.node * D + a, p.node * D + b, p.k * p.n[a] * p.n[b]);
-                }
-            }
-        }
-        if let Some(m) = self.mpm {
-            let st = &m.stencils;
-            self.gh.reset(
-                self.n_grid,
-                st.stencil_axes(),
-                st.grid().kernel().nodes_per_axis(),
-            );
-            // Particle Hessians V_p Gᵀ A_p G (A_p the PSD-projected tangent), particle groups
-            // in parallel, each block added into its fixed slot.
-            let nn = st.stencil_len();
-            let fq = &self.fq;
-            let (slots, pair_slot) = (self.gh.slots, &self.gh.pair_slot);
-            st.par_scatter_rows(&mut self.gh.rows, slots, |particles, rows| {
-                // Per group (hundreds of particles), not per particle.
-                let mut gvec = vec![SVector::<f64, D>::zeros(); nn];
-                let mut ids = vec![0usize; nn];
-                let mut blocks = vec![SMatrix::<f64, D, D>::zeros(); nn * nn];
-                for &p in particles {
-                    let p = p as usize;
-                    let t: Tangent<D> = m.bodies[m.body[p] as usize].material.tangent_psd(&fq[p]);
-                    let ft = m.f[p].transpose();
-                    let mut k = 0;
-                    st.particle(p).for_each(|i, _, grad| {
-                        ids[k] = i;
-                        gvec[k] = ft * grad;
-                        k += 1;
-                    });
-                    chain_hessian(&t, &gvec, w * m.volume[p], &mut blocks);
-                    for a in 0..nn {
-                        let row = rows.row(ids[a]);
-                        for b in 0..nn {
-                            let slot = &mut row[pair_slot[a * nn + b] as usize];
-                            slot.m += blocks[a * nn + b];
-                            slot.nbr = ids[b] as u32;
-                        }
-                    }
-                }
-            });
-        }
-        self.timing.mpm_s += lap(&mut clock);
-        for b in 0..self.fem.len() {
-            if self.fem[b].fully_prescribed {
-                continue;
-            }
-            let mut trip = std::mem::take(&mut self.fem_trip);
-            if self.fem[b]
-                .elastic
-                .hessian_triplets(&self.fem_x[b], w, self.fem_offset[b], &mut trip)
-                .is_ok()
-            {
-                h.reserve(trip.len());
-                for t in &trip {
-                    h.push(t.row, t.col, t.value);
-                }
-            }
-            self.fem_trip = trip;
-        }
-        self.timing.fem_s += lap(&mut clock);
-        if self.contact_cache.1 != Some(self.generation) {
-            // No gradient at this x and friction operator yet: compute the derivatives.
-            let mut scratch = vec![0.0; self.n_dofs];
-            self.contact_gradient(&mut scratch);
-        }
-        let cache = std::mem::take(&mut self.contact_cache.0);
-        for (k, [bar, fric]) in cache.iter().enumerate() {
-            self.scatter(k, bar, None, Some(h));
-            self.scatter(k, fric, None, Some(h));
-        }
-        self.contact_cache.0 = cache;
-        self.timing.contact_s += lap(&mut clock);
-        if self.mpm.is_some() {
-            self.gh.emit(h);
-        }
-        self.timing.emit_s += lap(&mut clock);
+        self.build_hessian(x, h, false);
+    }
+
+    fn exact_hessian(&mut self, x: &[f64], h: &mut Triplets) -> bool {
+        self.build_hessian(x, h, true);
+        true
     }
 
     fn max_step(&mut self, x: &[f64], p: &[f64]) -> StepBound {
@@ -1027,6 +1069,72 @@ mod tests {
                 .replace("0.001], \"max\"", "0.1], \"max\"")
                 .replace("0.06", "0.01"),
         );
+    }
+
+    /// `exact_hessian` against central differences of the gradient with contact terms active
+    /// (frictionless: friction's lagged operator is the same in both Hessians), and different
+    /// from the projected one there; the gradient's kept contact derivatives are re-made when
+    /// the other kind of Hessian is asked for.
+    fn check_exact_hessian<const D: usize>(json: &str) {
+        let mut w = world::<D>(json);
+        let setup = w.setup().unwrap();
+        let n = setup.n_dofs;
+        let mut obj = setup.objective(&w);
+        let r = noise(n, 13);
+        let x: Vec<f64> = (0..n).map(|d| setup.x0[d] + 1e-4 * r[d]).collect();
+        let mut g = vec![0.0; n];
+        obj.prefer_exact = true;
+        obj.gradient(&x, &mut g);
+        assert!(obj.last_contacts.0 > 0, "the scene must have contact terms");
+        let mut t = Triplets::default();
+        assert!(obj.exact_hessian(&x, &mut t));
+        let he = dense(&t, n);
+        let mut t = Triplets::default();
+        obj.hessian(&x, &mut t);
+        let hp = dense(&t, n);
+        assert!(
+            !obj.prefer_exact,
+            "asking for the projected Hessian ends the exact tries"
+        );
+        let mut t = Triplets::default();
+        obj.exact_hessian(&x, &mut t);
+        assert_eq!(dense(&t, n), he, "exact again after the projected one");
+        let hmax = he.iter().fold(0.0f64, |a, v| a.max(v.abs()));
+        let diff = he
+            .iter()
+            .zip(&hp)
+            .fold(0.0f64, |a, (u, v)| a.max((u - v).abs()));
+        assert!(diff > 1e-6 * hmax, "projection inactive: {diff:e}");
+        let h = 1e-7;
+        let (mut gp, mut gm) = (vec![0.0; n], vec![0.0; n]);
+        let mut xp = x.clone();
+        for c in 0..n {
+            xp[c] = x[c] + h;
+            gp.iter_mut().for_each(|v| *v = 0.0);
+            obj.gradient(&xp, &mut gp);
+            xp[c] = x[c] - h;
+            gm.iter_mut().for_each(|v| *v = 0.0);
+            obj.gradient(&xp, &mut gm);
+            xp[c] = x[c];
+            for r in 0..n {
+                let fd = (gp[r] - gm[r]) / (2.0 * h);
+                let an = he[r * n + c];
+                assert!(
+                    (fd - an).abs() <= 1e-5 * hmax + 1e-4 * an.abs(),
+                    "H[{r}][{c}]: exact {an} vs FD {fd} (max {hmax:e})"
+                );
+            }
+        }
+    }
+
+    #[test]
+    fn exact_hessian_matches_finite_differences_with_contact_2d() {
+        check_exact_hessian::<2>(&SCENE_2D.replace("\"friction\": 0.4", "\"friction\": 0"));
+    }
+
+    #[test]
+    fn exact_hessian_matches_finite_differences_with_contact_3d() {
+        check_exact_hessian::<3>(&SCENE_3D.replace("\"friction\": 0.4", "\"friction\": 0"));
     }
 
     fn dense(t: &Triplets, n: usize) -> Vec<f64> {

@@ -44,6 +44,10 @@ pub struct Summary {
     pub newton_iterations: usize,
     /// Friction iterations in total.
     pub friction_iterations: usize,
+    /// Newton iterations that used the exact Hessian (`solver.projection: "when_indefinite"`).
+    pub exact_hessian_iterations: usize,
+    /// Exact Hessians found indefinite (those solves went on with the projected one).
+    pub exact_hessian_rejections: usize,
     /// Steps whose friction iteration hit its limit.
     pub friction_unconverged_steps: usize,
     /// Largest penetration count in any step (BFEMP: must be 0).

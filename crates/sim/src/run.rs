@@ -143,6 +143,7 @@ pub fn run_with<const D: usize>(
                 m.contact_terms = report.contact_terms;
                 m.backtracks = report.stats.backtracks;
                 m.ccd_limited = report.stats.limited_by_ccd;
+                m.exact_hessians = report.stats.exact_iterations;
                 m.wall_s = t0.elapsed().as_secs_f64();
                 if report.contact_terms > 0 {
                     m.min_distance = m.min_distance.min(report.min_distance);
@@ -152,6 +153,8 @@ pub fn run_with<const D: usize>(
                 summary.simulated_time = world.time;
                 summary.newton_iterations += report.newton_iterations;
                 summary.friction_iterations += report.friction_iterations;
+                summary.exact_hessian_iterations += report.stats.exact_iterations;
+                summary.exact_hessian_rejections += report.stats.exact_rejections;
                 summary.friction_unconverged_steps += usize::from(!report.friction_converged);
                 summary.max_penetrations = summary.max_penetrations.max(m.penetrations);
                 let s = &report.stats;

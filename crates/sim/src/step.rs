@@ -3,12 +3,13 @@
 //! grid-to-particle and advection.
 
 use femp_kernels::transfer;
-use femp_solver::{NewtonParams, Ordering, SolveStats, Threads};
+use femp_solver::{HessianStrategy, NewtonParams, Ordering, SolveStats, Threads};
 use nalgebra::{SMatrix, SVector};
 
 use crate::error::SimError;
 use crate::objective::{Penalty, StepObjective};
 use crate::scene::BoundaryCondition;
+use crate::scene::spec::ProjectionSpec;
 use crate::world::{Transfer, World};
 
 /// What a step did.
@@ -44,6 +45,8 @@ fn add_stats(acc: &mut SolveStats, s: &SolveStats) {
     acc.final_energy = s.final_energy;
     acc.regularizations += s.regularizations;
     acc.roundoff_stops += s.roundoff_stops;
+    acc.exact_iterations += s.exact_iterations;
+    acc.exact_rejections += s.exact_rejections;
     acc.symbolic_analyses += s.symbolic_analyses;
     acc.assembly_s += s.assembly_s;
     acc.symbolic_s += s.symbolic_s;
@@ -114,6 +117,10 @@ impl<const D: usize> World<D> {
                 Ordering::Amd
             },
             threads: Threads::Auto,
+            hessian: match self.scene.spec.solver.projection {
+                ProjectionSpec::Always => HessianStrategy::Projected,
+                ProjectionSpec::WhenIndefinite => HessianStrategy::ExactWhenDefinite,
+            },
             ..Default::default()
         };
         let w = self.integrator.weight(dt);
@@ -170,6 +177,7 @@ impl<const D: usize> World<D> {
         let mut prev = x.clone();
         for j in 0..max_fric {
             report.friction_iterations = j + 1;
+            obj.prefer_exact = params.hessian == HessianStrategy::ExactWhenDefinite;
             let stats = self
                 .newton
                 .minimize_to(&mut obj, &mut x, &fixed, &target, &params)

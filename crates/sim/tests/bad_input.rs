@@ -81,6 +81,17 @@ fn unknown_fields_are_named_with_their_path() {
         &v,
         &["contact.hessian", "exact", "`projected` or `gauss_newton`"],
     );
+
+    let mut v = base();
+    v["solver"] = json!({ "projection": "never" });
+    expect_error(
+        &v,
+        &[
+            "solver.projection",
+            "never",
+            "`always` or `when_indefinite`",
+        ],
+    );
 }
 
 #[test]

@@ -78,6 +78,36 @@ fn block_falls_on_plate_and_rests_at_large_time_steps() {
     }
 }
 
+/// `solver.projection: "when_indefinite"`: the block comes to the same rest as with projected
+/// Newton (the same minimisers, to the Newton tolerance), never entering the plate, and the
+/// metrics count the iterations that used the exact Hessian; with the default none do.
+#[test]
+fn exact_hessian_when_definite_gives_the_same_steps() {
+    let scene = |projection: &str| {
+        block_on_plate(1e-2, 0.6).replace(
+            r#""solver": { "tolerance": 1e-5 }"#,
+            &format!(r#""solver": {{ "tolerance": 1e-5, "projection": "{projection}" }}"#),
+        )
+    };
+    let p = run_scene(&scene("always"));
+    let e = run_scene(&scene("when_indefinite"));
+    assert_eq!(p.metrics.len(), e.metrics.len());
+    assert!(p.metrics.iter().all(|m| m.exact_hessians == 0));
+    let exact: usize = e.metrics.iter().map(|m| m.exact_hessians).sum();
+    let newton: usize = e.metrics.iter().map(|m| m.newton_iterations).sum();
+    assert!(exact > newton / 2, "{exact} of {newton} iterations exact");
+    assert_eq!(e.summary.exact_hessian_iterations, exact);
+    let mass = 0.4 * 0.2 * 1000.0;
+    for (a, b) in p.metrics.iter().zip(&e.metrics) {
+        // Both solves stop at ‖p‖∞/Δt < 1e-5 m/s: momenta agree to a few times that.
+        let dv = (a.momentum[1] - b.momentum[1]).abs() / mass;
+        assert!(dv < 1e-4, "step {}: velocities differ by {dv} m/s", a.step);
+    }
+    let last = e.metrics.last().unwrap();
+    assert!(last.min_distance > 0.0 && last.min_distance < 0.005);
+    assert_eq!(e.summary.max_penetrations, 0);
+}
+
 /// `World::contact_forces` is the reaction force: once the block rests on the plate, the
 /// barrier force on its particles carries its weight.
 #[test]

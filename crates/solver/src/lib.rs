@@ -37,5 +37,7 @@ mod sparse;
 pub use error::SolveError;
 pub use integrator::Integrator;
 pub use linear::{Cholesky, LinearError, LinearStats, Ordering, Threads};
-pub use newton::{Newton, NewtonParams, Objective, SolveStats, StepBound, StepLimit};
+pub use newton::{
+    HessianStrategy, Newton, NewtonParams, Objective, SolveStats, StepBound, StepLimit,
+};
 pub use sparse::{Triplets, UpperCsc};

@@ -200,6 +200,25 @@ impl Cholesky {
 
     /// Numeric factorisation of `a` (analysed before), shifting the diagonal on failure.
     pub fn factorize(&mut self, a: &mut UpperCsc) -> Result<(), LinearError> {
+        self.factorize_shifting(a, 12)
+    }
+
+    /// One numeric factorisation of `a` (analysed before), without diagonal shifts: `Ok(true)`
+    /// if `a` is positive definite to working precision, `Ok(false)` if not (the factor is then
+    /// unusable). For trying an indefinite-looking matrix before falling back to a projected one.
+    pub fn try_factorize(&mut self, a: &mut UpperCsc) -> Result<bool, LinearError> {
+        match self.factorize_shifting(a, 0) {
+            Ok(()) => Ok(true),
+            Err(LinearError::NotPositiveDefinite { .. }) => Ok(false),
+            Err(other) => Err(other),
+        }
+    }
+
+    fn factorize_shifting(
+        &mut self,
+        a: &mut UpperCsc,
+        max_shifts: usize,
+    ) -> Result<(), LinearError> {
         let t = Instant::now();
         let Some(symbolic) = &self.symbolic else {
             return Err(LinearError::Symbolic(
@@ -235,7 +254,7 @@ impl Cholesky {
             if ok {
                 break;
             }
-            if shifts >= 12 {
+            if shifts >= max_shifts {
                 self.stats.numeric_s += t.elapsed().as_secs_f64();
                 return Err(LinearError::NotPositiveDefinite { shifts, delta });
             }

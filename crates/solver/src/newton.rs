@@ -60,10 +60,34 @@ pub trait Objective {
     /// A positive semi-definite approximation of `∇²E(x)` as **full symmetric** triplets
     /// (both triangles), appended to `h` (cleared by the caller).
     fn hessian(&mut self, x: &[f64], h: &mut Triplets);
+    /// The exact Hessian `∇²E(x)` (no PSD projection, possibly indefinite), in the same form
+    /// and with the same sparsity pattern as [`Objective::hessian`]; `false` if the objective
+    /// cannot give it (the default). Used by [`HessianStrategy::ExactWhenDefinite`].
+    fn exact_hessian(&mut self, _x: &[f64], _h: &mut Triplets) -> bool {
+        false
+    }
     /// The largest feasible step along `p` (CCD, inversion); default: unlimited.
     fn max_step(&mut self, _x: &[f64], _p: &[f64]) -> StepBound {
         StepBound::UNLIMITED
     }
+}
+
+/// Which Hessian a Newton iteration factorises.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum HessianStrategy {
+    /// Always the objective's PSD approximation ([`Objective::hessian`]): projected Newton.
+    /// Robust, but the curvature the projection adds (clipped negative eigenvalues of element,
+    /// particle and contact terms) makes Newton converge linearly wherever it is active.
+    #[default]
+    Projected,
+    /// The exact Hessian ([`Objective::exact_hessian`]) whenever the *assembled* matrix is
+    /// positive definite — per-term indefiniteness is often outweighed by the mass term — so
+    /// Newton converges quadratically there. Each iteration first tries to factorise the exact
+    /// Hessian without diagonal shifts; if that fails, it falls back to the projected one, and
+    /// keeps to it for the rest of the solve (a failed try costs one assembly and one
+    /// factorisation). A positive-definite Hessian gives a descent direction, so the line
+    /// search (Armijo, feasibility bound) is unchanged.
+    ExactWhenDefinite,
 }
 
 /// Parameters of a solve.
@@ -85,6 +109,8 @@ pub struct NewtonParams {
     pub ordering: Ordering,
     /// Threading of the factorisation.
     pub threads: Threads,
+    /// Which Hessian the iterations factorise.
+    pub hessian: HessianStrategy,
 }
 
 impl Default for NewtonParams {
@@ -98,6 +124,7 @@ impl Default for NewtonParams {
             min_step: 1e-14,
             ordering: Ordering::Auto,
             threads: Threads::Auto,
+            hessian: HessianStrategy::Projected,
         }
     }
 }
@@ -128,6 +155,10 @@ pub struct SolveStats {
     pub final_energy: f64,
     /// Diagonal shifts applied to make a Hessian factorisable.
     pub regularizations: usize,
+    /// Iterations that used the exact Hessian ([`HessianStrategy::ExactWhenDefinite`]).
+    pub exact_iterations: usize,
+    /// Exact Hessians found indefinite (the solve then continued projected).
+    pub exact_rejections: usize,
     /// Solves ended as stationary to working precision before `‖p‖_∞/Δt` reached the
     /// tolerance: the predicted decrease `−gᵀp` stayed below `ROUNDOFF·|E|` while ‖p‖ stopped
     /// shrinking, or no step decreased the energy and `−gᵀp ≤ 10⁴·ROUNDOFF·|E|`.
@@ -279,9 +310,10 @@ impl Newton {
             finish(&mut stats, &self.chol, e);
             return Ok(stats);
         }
+        let mut try_exact = params.hessian == HessianStrategy::ExactWhenDefinite;
         for _ in 0..params.max_iterations {
             stats.iterations += 1;
-            let t = Instant::now();
+            let mut t = Instant::now();
             obj.begin_iteration(x);
             self.g.iter_mut().for_each(|v| *v = 0.0);
             obj.gradient(x, &mut self.g);
@@ -293,21 +325,49 @@ impl Newton {
                     stats: Box::new(stats),
                 });
             }
-            self.triplets.clear();
-            obj.hessian(x, &mut self.triplets);
-            let changed = self.csc.assemble(&self.triplets, &self.free, nf);
-            stats.assembly_s += t.elapsed().as_secs_f64();
-            if changed || !self.chol.is_analyzed() {
-                self.chol
-                    .analyze(&self.csc)
-                    .map_err(|err| self.linear_error(err, &mut stats, e))?;
+            let mut factorized = false;
+            if try_exact {
+                self.triplets.clear();
+                if obj.exact_hessian(x, &mut self.triplets) {
+                    let changed = self.csc.assemble(&self.triplets, &self.free, nf);
+                    stats.assembly_s += t.elapsed().as_secs_f64();
+                    if changed || !self.chol.is_analyzed() {
+                        self.chol
+                            .analyze(&self.csc)
+                            .map_err(|err| self.linear_error(err, &mut stats, e))?;
+                    }
+                    factorized = self
+                        .chol
+                        .try_factorize(&mut self.csc)
+                        .map_err(|err| self.linear_error(err, &mut stats, e))?;
+                    if factorized {
+                        stats.exact_iterations += 1;
+                    } else {
+                        stats.exact_rejections += 1;
+                        try_exact = false;
+                    }
+                    t = Instant::now();
+                } else {
+                    try_exact = false;
+                }
             }
-            if let Err(err) = self.chol.factorize(&mut self.csc) {
-                finish(&mut stats, &self.chol, e);
-                return Err(SolveError::Linear {
-                    source: err,
-                    stats: Box::new(stats),
-                });
+            if !factorized {
+                self.triplets.clear();
+                obj.hessian(x, &mut self.triplets);
+                let changed = self.csc.assemble(&self.triplets, &self.free, nf);
+                stats.assembly_s += t.elapsed().as_secs_f64();
+                if changed || !self.chol.is_analyzed() {
+                    self.chol
+                        .analyze(&self.csc)
+                        .map_err(|err| self.linear_error(err, &mut stats, e))?;
+                }
+                if let Err(err) = self.chol.factorize(&mut self.csc) {
+                    finish(&mut stats, &self.chol, e);
+                    return Err(SolveError::Linear {
+                        source: err,
+                        stats: Box::new(stats),
+                    });
+                }
             }
             // Prescribed increments of the fixed DOFs, and their coupling −H_fd p_d.
             self.p.iter_mut().for_each(|v| *v = 0.0);

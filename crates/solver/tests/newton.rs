@@ -2,8 +2,8 @@
 //! the time integrators against their closed-form discrete solutions, and failing solves.
 
 use femp_solver::{
-    Integrator, Newton, NewtonParams, Objective, Ordering, SolveError, StepBound, StepLimit,
-    Threads, Triplets,
+    HessianStrategy, Integrator, Newton, NewtonParams, Objective, Ordering, SolveError, StepBound,
+    StepLimit, Threads, Triplets,
 };
 use nalgebra::{DMatrix, DVector};
 
@@ -112,6 +112,41 @@ impl Chain {
     }
 }
 
+impl Chain {
+    /// The spring's Hessian block `k (û ûᵀ + c (I − û ûᵀ))`, with `c = 1 − L/l` (exact; negative
+    /// for a compressed spring) or `max(0, c)` (its PSD part).
+    fn spring_hessian(&self, x: &[f64], h: &mut Triplets, exact: bool) {
+        for j in 1..self.n {
+            let (d, l) = self.spring(x, j);
+            let u = [d[0] / l, d[1] / l];
+            let c = if exact {
+                1.0 - self.rest / l
+            } else {
+                (1.0 - self.rest / l).max(0.0)
+            };
+            let mut kb = [[0.0; 2]; 2];
+            for a in 0..2 {
+                for b in 0..2 {
+                    let id = if a == b { 1.0 } else { 0.0 };
+                    kb[a][b] = self.k * (u[a] * u[b] + c * (id - u[a] * u[b]));
+                }
+            }
+            for (p, q, s) in [
+                (j, j, 1.0),
+                (j - 1, j - 1, 1.0),
+                (j, j - 1, -1.0),
+                (j - 1, j, -1.0),
+            ] {
+                for a in 0..2 {
+                    for b in 0..2 {
+                        h.push(2 * p + a, 2 * q + b, s * kb[a][b]);
+                    }
+                }
+            }
+        }
+    }
+}
+
 impl Objective for Chain {
     fn num_dofs(&self) -> usize {
         2 * self.n
@@ -142,31 +177,152 @@ impl Objective for Chain {
         }
     }
     fn hessian(&mut self, x: &[f64], h: &mut Triplets) {
-        for j in 1..self.n {
-            let (d, l) = self.spring(x, j);
-            let u = [d[0] / l, d[1] / l];
-            // K = k (û ûᵀ + max(0, 1 − L/l)(I − û ûᵀ)): the PSD part of the spring Hessian.
-            let c = (1.0 - self.rest / l).max(0.0);
-            let mut kb = [[0.0; 2]; 2];
-            for a in 0..2 {
-                for b in 0..2 {
-                    let id = if a == b { 1.0 } else { 0.0 };
-                    kb[a][b] = self.k * (u[a] * u[b] + c * (id - u[a] * u[b]));
-                }
-            }
-            for (p, q, s) in [
-                (j, j, 1.0),
-                (j - 1, j - 1, 1.0),
-                (j, j - 1, -1.0),
-                (j - 1, j, -1.0),
-            ] {
-                for a in 0..2 {
-                    for b in 0..2 {
-                        h.push(2 * p + a, 2 * q + b, s * kb[a][b]);
-                    }
-                }
-            }
+        // K = k (û ûᵀ + max(0, 1 − L/l)(I − û ûᵀ)): the PSD part of the spring Hessian.
+        self.spring_hessian(x, h, false);
+    }
+    fn exact_hessian(&mut self, x: &[f64], h: &mut Triplets) -> bool {
+        self.spring_hessian(x, h, true);
+        true
+    }
+}
+
+/// One implicit time step of the chain: `½ (m/Δt²) |x − x̂|² + E_chain(x)`.
+struct ChainStep {
+    chain: Chain,
+    inertia: f64,
+    x_hat: Vec<f64>,
+}
+
+impl Objective for ChainStep {
+    fn num_dofs(&self) -> usize {
+        self.chain.num_dofs()
+    }
+    fn energy(&mut self, x: &[f64]) -> f64 {
+        let d2: f64 = x
+            .iter()
+            .zip(&self.x_hat)
+            .map(|(a, b)| (a - b).powi(2))
+            .sum();
+        0.5 * self.inertia * d2 + self.chain.energy(x)
+    }
+    fn gradient(&mut self, x: &[f64], g: &mut [f64]) {
+        self.chain.gradient(x, g);
+        for (k, gk) in g.iter_mut().enumerate() {
+            *gk += self.inertia * (x[k] - self.x_hat[k]);
         }
+    }
+    fn hessian(&mut self, x: &[f64], h: &mut Triplets) {
+        for k in 0..x.len() {
+            h.push(k, k, self.inertia);
+        }
+        self.chain.hessian(x, h);
+    }
+    fn exact_hessian(&mut self, x: &[f64], h: &mut Triplets) -> bool {
+        for k in 0..x.len() {
+            h.push(k, k, self.inertia);
+        }
+        self.chain.exact_hessian(x, h)
+    }
+}
+
+/// A chain crumpled to a tenth of its rest length, every spring compressed: the projection
+/// drops their (negative) transverse stiffness.
+fn crumpled_chain(n: usize) -> (Chain, Vec<f64>, Vec<bool>) {
+    let chain = Chain {
+        n,
+        k: 250.0,
+        rest: 0.1,
+        m: (0..n).map(|j| 0.05 + 0.01 * j as f64).collect(),
+        g: 9.81,
+    };
+    let x: Vec<f64> = (0..n)
+        .flat_map(|j| [0.01 * j as f64, 0.002 * (j % 2) as f64])
+        .collect();
+    let mut fixed = vec![false; 2 * n];
+    fixed[0] = true;
+    fixed[1] = true;
+    (chain, x, fixed)
+}
+
+/// With a mass term that outweighs the compressed springs' negative stiffness the assembled
+/// exact Hessian is positive definite: `ExactWhenDefinite` uses it in every iteration and
+/// reaches the same minimiser as projected Newton in fewer iterations (Newton's quadratic
+/// convergence, which the projection's extra curvature spoils). A wrong exact Hessian would not
+/// converge this fast, or to the same point.
+#[test]
+fn exact_hessian_when_definite_converges_faster_to_the_same_step() {
+    let n = 20;
+    let solve = |hessian: HessianStrategy| {
+        let (chain, x0, fixed) = crumpled_chain(n);
+        let mut obj = ChainStep {
+            chain,
+            inertia: 2.0e4,
+            x_hat: x0.iter().map(|v| v * 1.5).collect(),
+        };
+        let mut x = x0.clone();
+        let stats = Newton::new()
+            .minimize(
+                &mut obj,
+                &mut x,
+                &fixed,
+                &NewtonParams {
+                    tolerance: 1e-12,
+                    hessian,
+                    ..Default::default()
+                },
+            )
+            .unwrap();
+        (x, stats)
+    };
+    let (xp, sp) = solve(HessianStrategy::Projected);
+    let (xe, se) = solve(HessianStrategy::ExactWhenDefinite);
+    assert_eq!(sp.exact_iterations, 0);
+    assert_eq!(se.exact_rejections, 0, "{se:?}");
+    assert_eq!(se.exact_iterations, se.iterations, "{se:?}");
+    assert_eq!(se.regularizations, 0);
+    for (a, b) in xp.iter().zip(&xe) {
+        assert!((a - b).abs() < 1e-9, "{a} vs {b}");
+    }
+    // Measured: 5 against 15.
+    assert!(
+        2 * se.iterations <= sp.iterations,
+        "exact {} vs projected {} iterations",
+        se.iterations,
+        sp.iterations
+    );
+}
+
+/// Without a mass term the crumpled chain's exact Hessian is indefinite: the first try is
+/// rejected (without diagonal shifts), the solve goes on projected and still reaches the static
+/// equilibrium.
+#[test]
+fn indefinite_exact_hessian_falls_back_to_the_projected_one() {
+    let n = 12;
+    let (mut chain, mut x, fixed) = crumpled_chain(n);
+    let stats = Newton::new()
+        .minimize(
+            &mut chain,
+            &mut x,
+            &fixed,
+            &NewtonParams {
+                tolerance: 1e-12,
+                hessian: HessianStrategy::ExactWhenDefinite,
+                ..Default::default()
+            },
+        )
+        .unwrap();
+    assert_eq!(stats.exact_rejections, 1, "{stats:?}");
+    assert_eq!(stats.exact_iterations, 0, "{stats:?}");
+    let mut y = 0.0;
+    for j in 1..n {
+        let t: f64 = chain.m[j..].iter().sum::<f64>() * chain.g;
+        y -= chain.rest + t / chain.k;
+        assert!(x[2 * j].abs() < 1e-9, "mass {j} x = {}", x[2 * j]);
+        assert!(
+            (x[2 * j + 1] - y).abs() < 1e-9,
+            "mass {j}: y = {}",
+            x[2 * j + 1]
+        );
     }
 }
 

@@ -203,6 +203,20 @@ pub struct SolverSpec {
     pub max_newton_iterations: usize,
     /// Friction (lagging) iteration limit per step.
     pub max_friction_iterations: usize,
+    /// When the Newton iterations PSD-project element, particle and barrier Hessians.
+    pub projection: ProjectionSpec,
+}
+
+/// When the Newton iterations PSD-project the Hessian (`solver.projection`).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum ProjectionSpec {
+    /// Every iteration (projected Newton; the papers' method).
+    #[default]
+    Always,
+    /// Only when the exact Hessian of the whole system is indefinite: each solve factorises the
+    /// exact one while it is positive definite, else continues projected.
+    WhenIndefinite,
 }
 
 impl Default for SolverSpec {
@@ -211,6 +225,7 @@ impl Default for SolverSpec {
             tolerance: 1e-4,
             max_newton_iterations: 100,
             max_friction_iterations: 20,
+            projection: ProjectionSpec::Always,
         }
     }
 }
