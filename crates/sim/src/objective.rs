@@ -411,11 +411,6 @@ impl<'a, const D: usize> StepObjective<'a, D> {
     /// The Hessian with PSD-projected element, particle and barrier terms, or (`exact`) the
     /// exact one. Friction's lagged operator is PSD by construction and the same in both.
     fn build_hessian(&mut self, x: &[f64], h: &mut Triplets, exact: bool) {
-        if !exact {
-            // The solver asks for the projected Hessian: the exact one was indefinite (or not
-            // wanted), and the solve stays projected — stop computing exact contact terms.
-            self.prefer_exact = false;
-        }
         self.unpack(x);
         let mut clock = Instant::now();
         let w = self.w;
@@ -1074,7 +1069,7 @@ mod tests {
     /// `exact_hessian` against central differences of the gradient with contact terms active
     /// (frictionless: friction's lagged operator is the same in both Hessians), and different
     /// from the projected one there; the gradient's kept contact derivatives are re-made when
-    /// the other kind of Hessian is asked for.
+    /// the other kind of Hessian is asked for (exact, projected, exact again).
     fn check_exact_hessian<const D: usize>(json: &str) {
         let mut w = world::<D>(json);
         let setup = w.setup().unwrap();
@@ -1092,10 +1087,6 @@ mod tests {
         let mut t = Triplets::default();
         obj.hessian(&x, &mut t);
         let hp = dense(&t, n);
-        assert!(
-            !obj.prefer_exact,
-            "asking for the projected Hessian ends the exact tries"
-        );
         let mut t = Triplets::default();
         obj.exact_hessian(&x, &mut t);
         assert_eq!(dense(&t, n), he, "exact again after the projected one");

@@ -82,11 +82,11 @@ pub enum HessianStrategy {
     Projected,
     /// The exact Hessian ([`Objective::exact_hessian`]) whenever the *assembled* matrix is
     /// positive definite — per-term indefiniteness is often outweighed by the mass term — so
-    /// Newton converges quadratically there. Each iteration first tries to factorise the exact
-    /// Hessian without diagonal shifts; if that fails, it falls back to the projected one, and
-    /// keeps to it for the rest of the solve (a failed try costs one assembly and one
-    /// factorisation). A positive-definite Hessian gives a descent direction, so the line
-    /// search (Armijo, feasibility bound) is unchanged.
+    /// Newton converges quadratically there. An iteration first tries to factorise the exact
+    /// Hessian without diagonal shifts; if that fails, it uses the projected one. After `k`
+    /// rejections in a row the next `2^(k−1) − 1` iterations do not try (a failed try costs
+    /// one assembly and one factorisation). A positive-definite Hessian gives a descent
+    /// direction, so the line search (Armijo, feasibility bound) is unchanged.
     ExactWhenDefinite,
 }
 
@@ -310,7 +310,9 @@ impl Newton {
             finish(&mut stats, &self.chol, e);
             return Ok(stats);
         }
-        let mut try_exact = params.hessian == HessianStrategy::ExactWhenDefinite;
+        let exact_wanted = params.hessian == HessianStrategy::ExactWhenDefinite;
+        // Consecutive rejected exact Hessians, and iterations to wait before the next try.
+        let (mut rejected_in_a_row, mut wait) = (0u32, 0u64);
         for _ in 0..params.max_iterations {
             stats.iterations += 1;
             let mut t = Instant::now();
@@ -326,6 +328,8 @@ impl Newton {
                 });
             }
             let mut factorized = false;
+            let try_exact = exact_wanted && wait == 0;
+            wait = wait.saturating_sub(1);
             if try_exact {
                 self.triplets.clear();
                 if obj.exact_hessian(x, &mut self.triplets) {
@@ -342,13 +346,18 @@ impl Newton {
                         .map_err(|err| self.linear_error(err, &mut stats, e))?;
                     if factorized {
                         stats.exact_iterations += 1;
+                        rejected_in_a_row = 0;
                     } else {
+                        // Try again next iteration after a first rejection, then back off
+                        // (wait 1, 3, 7, … iterations): a solve whose exact Hessian stays
+                        // indefinite wastes O(log iterations) tries.
                         stats.exact_rejections += 1;
-                        try_exact = false;
+                        rejected_in_a_row += 1;
+                        wait = (1u64 << (rejected_in_a_row - 1).min(20)) - 1;
                     }
                     t = Instant::now();
                 } else {
-                    try_exact = false;
+                    wait = u64::MAX;
                 }
             }
             if !factorized {

@@ -292,9 +292,10 @@ fn exact_hessian_when_definite_converges_faster_to_the_same_step() {
     );
 }
 
-/// Without a mass term the crumpled chain's exact Hessian is indefinite: the first try is
-/// rejected (without diagonal shifts), the solve goes on projected and still reaches the static
-/// equilibrium.
+/// Without a mass term the crumpled chain's exact Hessian is indefinite: the tries are rejected
+/// (without diagonal shifts) and those iterations use the projected Hessian, with tries backing
+/// off; once the chain hangs in tension the exact Hessian is positive definite and used again.
+/// The solve reaches the static equilibrium.
 #[test]
 fn indefinite_exact_hessian_falls_back_to_the_projected_one() {
     let n = 12;
@@ -311,8 +312,12 @@ fn indefinite_exact_hessian_falls_back_to_the_projected_one() {
             },
         )
         .unwrap();
-    assert_eq!(stats.exact_rejections, 1, "{stats:?}");
-    assert_eq!(stats.exact_iterations, 0, "{stats:?}");
+    assert!(stats.exact_rejections >= 1, "{stats:?}");
+    assert!(stats.exact_iterations >= 1, "{stats:?}");
+    // Back-off: after k rejections in a row the next try waits 2^(k−1) − 1 iterations, so some
+    // iterations do not try (measured: 11 iterations, 3 rejected tries, 4 exact).
+    let tries = stats.exact_rejections + stats.exact_iterations;
+    assert!(tries < stats.iterations, "{stats:?}");
     let mut y = 0.0;
     for j in 1..n {
         let t: f64 = chain.m[j..].iter().sum::<f64>() * chain.g;

@@ -214,8 +214,8 @@ pub enum ProjectionSpec {
     /// Every iteration (projected Newton; the papers' method).
     #[default]
     Always,
-    /// Only when the exact Hessian of the whole system is indefinite: each solve factorises the
-    /// exact one while it is positive definite, else continues projected.
+    /// Only when the exact Hessian of the whole system is indefinite: an iteration factorises
+    /// the exact one if it is positive definite, else the projected one.
     WhenIndefinite,
 }
 
