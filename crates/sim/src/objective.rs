@@ -431,8 +431,8 @@ impl<'a, const D: usize> StepObjective<'a, D> {
                 st.stencil_axes(),
                 st.grid().kernel().nodes_per_axis(),
             );
-            // Particle Hessians V_p Gᵀ A_p G (A_p the PSD-projected tangent), particle groups
-            // in parallel, each block added into its fixed slot.
+            // Particle Hessians V_p Gᵀ A_p G (A_p the tangent, PSD-projected unless `exact`),
+            // particle groups in parallel, each block added into its fixed slot.
             let nn = st.stencil_len();
             let fq = &self.fq;
             let (slots, pair_slot) = (self.gh.slots, &self.gh.pair_slot);

@@ -46,7 +46,7 @@ pub struct Summary {
     pub friction_iterations: usize,
     /// Newton iterations that used the exact Hessian (`solver.projection: "when_indefinite"`).
     pub exact_hessian_iterations: usize,
-    /// Exact Hessians found indefinite (those solves went on with the projected one).
+    /// Exact Hessians found indefinite (those iterations used the projected one).
     pub exact_hessian_rejections: usize,
     /// Steps whose friction iteration hit its limit.
     pub friction_unconverged_steps: usize,

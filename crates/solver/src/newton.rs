@@ -157,7 +157,7 @@ pub struct SolveStats {
     pub regularizations: usize,
     /// Iterations that used the exact Hessian ([`HessianStrategy::ExactWhenDefinite`]).
     pub exact_iterations: usize,
-    /// Exact Hessians found indefinite (the solve then continued projected).
+    /// Exact Hessians found indefinite (those iterations used the projected one).
     pub exact_rejections: usize,
     /// Solves ended as stationary to working precision before `‖p‖_∞/Δt` reached the
     /// tolerance: the predicted decrease `−gᵀp` stayed below `ROUNDOFF·|E|` while ‖p‖ stopped
