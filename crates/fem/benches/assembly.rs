@@ -49,6 +49,22 @@ fn bench_mesh<const D: usize>(c: &mut Criterion, name: &str, mesh: &Mesh<D>) {
                 })
             },
         );
+        // The exact (unprojected) Hessian alone, against the projected one alone: what an
+        // exact-when-definite Newton iteration saves or adds per assembly.
+        for (label, exact) in [("hessian", false), ("exact_hessian", true)] {
+            group.bench_with_input(BenchmarkId::new(label, threads), &threads, |b, _| {
+                b.iter(|| {
+                    pool.install(|| {
+                        if exact {
+                            body.exact_hessian_triplets(&x, 1.0, 0, &mut trip).unwrap();
+                        } else {
+                            body.hessian_triplets(&x, 1.0, 0, &mut trip).unwrap();
+                        }
+                        black_box(&trip);
+                    })
+                })
+            });
+        }
     }
     group.finish();
 }
