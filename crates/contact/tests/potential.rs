@@ -7,8 +7,8 @@ use femp_contact::broad_phase::{self, Candidates};
 use femp_contact::ccd::{self, CcdOptions};
 use femp_contact::friction::{self, FrictionParams};
 use femp_contact::{
-    BarrierHessian, BoundaryTopology, ContactError, ContactPotential, LogBarrier, TermDerivatives,
-    particle_weight,
+    BarrierHessian, BoundaryTopology, ContactError, ContactPotential, ContactTerm, LogBarrier,
+    TermDerivatives, particle_weight,
 };
 use nalgebra::{DMatrix, DVector, SVector, Vector2, Vector3};
 
@@ -249,6 +249,21 @@ fn potential_gradient_and_hessian() {
     assert!(g1.norm() > 0.0);
 }
 
+/// The active terms of particles weighted 0.2, 0.3, …, each of which must be within d̂.
+fn terms_of_every_particle<const D: usize>(
+    pot: &ContactPotential<D>,
+    particles: &[SVector<f64, D>],
+    v: &[SVector<f64, D>],
+) -> Vec<ContactTerm> {
+    let w: Vec<f64> = (0..particles.len()).map(|k| 0.2 + 0.1 * k as f64).collect();
+    let mut c = Candidates::default();
+    broad_phase::candidates_within(particles, v, pot.topology.facets(), 0.1, &mut c);
+    let mut terms = Vec::new();
+    pot.collect_terms(particles, &w, v, &c, &mut terms).unwrap();
+    assert!(terms.len() >= particles.len(), "every particle is within d̂");
+    terms
+}
+
 /// Gauss–Newton Hessian of particles near vertices, edges and faces (2D and 3D, boundary
 /// vertices free): PSD, and equal to the exact Hessian minus `Σ_t ω_t b'(d_t) ∇²d_t`, both the
 /// exact Hessian and each distance's Hessian by finite differences.
@@ -258,12 +273,7 @@ fn check_gauss_newton<const D: usize>(
     v: &[SVector<f64, D>],
 ) {
     let (np, nb) = (particles.len(), v.len());
-    let w: Vec<f64> = (0..np).map(|k| 0.2 + 0.1 * k as f64).collect();
-    let mut c = Candidates::default();
-    broad_phase::candidates_within(particles, v, pot.topology.facets(), 0.1, &mut c);
-    let mut terms = Vec::new();
-    pot.collect_terms(particles, &w, v, &c, &mut terms).unwrap();
-    assert!(terms.len() >= np, "every particle is within d̂");
+    let terms = terms_of_every_particle(pot, particles, v);
     let mut d = Vec::new();
     pot.derivatives(&terms, particles, v, &mut d);
     let (_, h) = accumulate(&d, np, nb);
@@ -361,12 +371,7 @@ fn check_exact<const D: usize>(
     v: &[SVector<f64, D>],
 ) {
     let (np, nb) = (particles.len(), v.len());
-    let w: Vec<f64> = (0..np).map(|k| 0.2 + 0.1 * k as f64).collect();
-    let mut c = Candidates::default();
-    broad_phase::candidates_within(particles, v, pot.topology.facets(), 0.1, &mut c);
-    let mut terms = Vec::new();
-    pot.collect_terms(particles, &w, v, &c, &mut terms).unwrap();
-    assert!(terms.len() >= np, "every particle is within d̂");
+    let terms = terms_of_every_particle(pot, particles, v);
     let (mut d, mut e) = (Vec::new(), Vec::new());
     pot.derivatives(&terms, particles, v, &mut d);
     pot.exact_derivatives(&terms, particles, v, &mut e);

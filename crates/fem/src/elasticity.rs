@@ -227,11 +227,7 @@ impl<const D: usize, M: Hyperelastic<D>> ElasticBody<D, M> {
             .with_min_len(256)
             .for_each(|(e, chunk)| {
                 let mut blocks = [SMatrix::<f64, D, D>::zeros(); 16];
-                if project {
-                    self.element_hessian(e, x, scale, &mut blocks);
-                } else {
-                    self.element_hessian_exact(e, x, scale, &mut blocks);
-                }
+                self.element_blocks(e, x, scale, project, &mut blocks);
                 let c = &self.cells[e];
                 let mut t = 0;
                 for i in 0..=D {
@@ -263,28 +259,26 @@ impl<const D: usize, M: Hyperelastic<D>> ElasticBody<D, M> {
         scale: f64,
         blocks: &mut [SMatrix<f64, D, D>; 16],
     ) {
-        let el = &self.elements[e];
-        let t = self.material.tangent_psd(&self.deformation_gradient(e, x));
-        chain_hessian(
-            &t,
-            el.gradients(),
-            el.volume * scale,
-            &mut blocks[..(D + 1) * (D + 1)],
-        );
+        self.element_blocks(e, x, scale, true, blocks);
     }
 
-    /// Exact (unprojected) Hessian blocks of `scale · V_e ψ(F_e)` for element `e`, laid out like
-    /// [`Self::element_hessian`].
+    /// [`Self::element_hessian`], or (`project` false) the exact, unprojected blocks.
     #[inline]
-    pub fn element_hessian_exact(
+    fn element_blocks(
         &self,
         e: usize,
         x: &[SVector<f64, D>],
         scale: f64,
+        project: bool,
         blocks: &mut [SMatrix<f64, D, D>; 16],
     ) {
         let el = &self.elements[e];
-        let t = self.material.tangent(&self.deformation_gradient(e, x));
+        let f = self.deformation_gradient(e, x);
+        let t = if project {
+            self.material.tangent_psd(&f)
+        } else {
+            self.material.tangent(&f)
+        };
         chain_hessian(
             &t,
             el.gradients(),

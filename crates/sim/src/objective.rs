@@ -1021,14 +1021,21 @@ mod tests {
         let mut t = Triplets::default();
         obj.hessian(&x, &mut t);
         assert_eq!(obj.last_contacts.0, 0, "scene must be contact-free");
-        let mut hd = vec![0.0; n * n];
-        for (r, c, v) in t.iter() {
-            hd[r * n + c] += v;
-        }
+        assert_gradient_derivative(&mut obj, &x, &dense(&t, n), 1e-6);
+    }
+
+    /// `hd` (dense, n × n) equals the central difference (step `h`) of the objective's
+    /// gradient at `x`, to 1e-5 of its largest entry plus 1e-4 relative.
+    fn assert_gradient_derivative<const D: usize>(
+        obj: &mut super::StepObjective<'_, D>,
+        x: &[f64],
+        hd: &[f64],
+        h: f64,
+    ) {
+        let n = x.len();
         let hmax = hd.iter().fold(0.0f64, |a, v| a.max(v.abs()));
-        let h = 1e-6;
         let (mut gp, mut gm) = (vec![0.0; n], vec![0.0; n]);
-        let mut xp = x.clone();
+        let mut xp = x.to_vec();
         for c in 0..n {
             xp[c] = x[c] + h;
             gp.iter_mut().for_each(|v| *v = 0.0);
@@ -1096,26 +1103,7 @@ mod tests {
             .zip(&hp)
             .fold(0.0f64, |a, (u, v)| a.max((u - v).abs()));
         assert!(diff > 1e-6 * hmax, "projection inactive: {diff:e}");
-        let h = 1e-7;
-        let (mut gp, mut gm) = (vec![0.0; n], vec![0.0; n]);
-        let mut xp = x.clone();
-        for c in 0..n {
-            xp[c] = x[c] + h;
-            gp.iter_mut().for_each(|v| *v = 0.0);
-            obj.gradient(&xp, &mut gp);
-            xp[c] = x[c] - h;
-            gm.iter_mut().for_each(|v| *v = 0.0);
-            obj.gradient(&xp, &mut gm);
-            xp[c] = x[c];
-            for r in 0..n {
-                let fd = (gp[r] - gm[r]) / (2.0 * h);
-                let an = he[r * n + c];
-                assert!(
-                    (fd - an).abs() <= 1e-5 * hmax + 1e-4 * an.abs(),
-                    "H[{r}][{c}]: exact {an} vs FD {fd} (max {hmax:e})"
-                );
-            }
-        }
+        assert_gradient_derivative(&mut obj, &x, &he, 1e-7);
     }
 
     #[test]

@@ -175,9 +175,9 @@ impl<const D: usize> World<D> {
             1
         };
         let mut prev = x.clone();
+        obj.prefer_exact = params.hessian == HessianStrategy::ExactWhenDefinite;
         for j in 0..max_fric {
             report.friction_iterations = j + 1;
-            obj.prefer_exact = params.hessian == HessianStrategy::ExactWhenDefinite;
             let stats = self
                 .newton
                 .minimize_to(&mut obj, &mut x, &fixed, &target, &params)

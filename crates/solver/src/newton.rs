@@ -333,13 +333,7 @@ impl Newton {
             if try_exact {
                 self.triplets.clear();
                 if obj.exact_hessian(x, &mut self.triplets) {
-                    let changed = self.csc.assemble(&self.triplets, &self.free, nf);
-                    stats.assembly_s += t.elapsed().as_secs_f64();
-                    if changed || !self.chol.is_analyzed() {
-                        self.chol
-                            .analyze(&self.csc)
-                            .map_err(|err| self.linear_error(err, &mut stats, e))?;
-                    }
+                    self.assemble_triplets(nf, t, &mut stats, e)?;
                     factorized = self
                         .chol
                         .try_factorize(&mut self.csc)
@@ -363,13 +357,7 @@ impl Newton {
             if !factorized {
                 self.triplets.clear();
                 obj.hessian(x, &mut self.triplets);
-                let changed = self.csc.assemble(&self.triplets, &self.free, nf);
-                stats.assembly_s += t.elapsed().as_secs_f64();
-                if changed || !self.chol.is_analyzed() {
-                    self.chol
-                        .analyze(&self.csc)
-                        .map_err(|err| self.linear_error(err, &mut stats, e))?;
-                }
+                self.assemble_triplets(nf, t, &mut stats, e)?;
                 if let Err(err) = self.chol.factorize(&mut self.csc) {
                     finish(&mut stats, &self.chol, e);
                     return Err(SolveError::Linear {
@@ -529,6 +517,25 @@ impl Newton {
         Err(SolveError::IterationLimit {
             stats: Box::new(stats),
         })
+    }
+
+    /// The Hessian triplets into the free-DOF CSC (assembly time counted from `since`), and a
+    /// new symbolic analysis if the sparsity pattern changed.
+    fn assemble_triplets(
+        &mut self,
+        nf: usize,
+        since: Instant,
+        stats: &mut SolveStats,
+        e: f64,
+    ) -> Result<(), SolveError> {
+        let changed = self.csc.assemble(&self.triplets, &self.free, nf);
+        stats.assembly_s += since.elapsed().as_secs_f64();
+        if changed || !self.chol.is_analyzed() {
+            self.chol
+                .analyze(&self.csc)
+                .map_err(|err| self.linear_error(err, stats, e))?;
+        }
+        Ok(())
     }
 
     fn linear_error(&self, err: LinearError, stats: &mut SolveStats, e: f64) -> SolveError {

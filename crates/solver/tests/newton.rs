@@ -106,6 +106,17 @@ struct Chain {
 }
 
 impl Chain {
+    /// `n` masses (0.05 + 0.01 j kg) joined by springs k = 250 N/m, L = 0.1 m, under g = 9.81.
+    fn hanging(n: usize) -> Self {
+        Chain {
+            n,
+            k: 250.0,
+            rest: 0.1,
+            m: (0..n).map(|j| 0.05 + 0.01 * j as f64).collect(),
+            g: 9.81,
+        }
+    }
+
     fn spring(&self, x: &[f64], j: usize) -> ([f64; 2], f64) {
         let d = [x[2 * j] - x[2 * j - 2], x[2 * j + 1] - x[2 * j - 1]];
         (d, (d[0] * d[0] + d[1] * d[1]).sqrt())
@@ -212,15 +223,11 @@ impl Objective for ChainStep {
         }
     }
     fn hessian(&mut self, x: &[f64], h: &mut Triplets) {
-        for k in 0..x.len() {
-            h.push(k, k, self.inertia);
-        }
+        h.extend((0..x.len()).map(|k| (k, k, self.inertia)));
         self.chain.hessian(x, h);
     }
     fn exact_hessian(&mut self, x: &[f64], h: &mut Triplets) -> bool {
-        for k in 0..x.len() {
-            h.push(k, k, self.inertia);
-        }
+        h.extend((0..x.len()).map(|k| (k, k, self.inertia)));
         self.chain.exact_hessian(x, h)
     }
 }
@@ -228,13 +235,7 @@ impl Objective for ChainStep {
 /// A chain crumpled to a tenth of its rest length, every spring compressed: the projection
 /// drops their (negative) transverse stiffness.
 fn crumpled_chain(n: usize) -> (Chain, Vec<f64>, Vec<bool>) {
-    let chain = Chain {
-        n,
-        k: 250.0,
-        rest: 0.1,
-        m: (0..n).map(|j| 0.05 + 0.01 * j as f64).collect(),
-        g: 9.81,
-    };
+    let chain = Chain::hanging(n);
     let x: Vec<f64> = (0..n)
         .flat_map(|j| [0.01 * j as f64, 0.002 * (j % 2) as f64])
         .collect();
@@ -318,29 +319,13 @@ fn indefinite_exact_hessian_falls_back_to_the_projected_one() {
     // iterations do not try (measured: 11 iterations, 3 rejected tries, 4 exact).
     let tries = stats.exact_rejections + stats.exact_iterations;
     assert!(tries < stats.iterations, "{stats:?}");
-    let mut y = 0.0;
-    for j in 1..n {
-        let t: f64 = chain.m[j..].iter().sum::<f64>() * chain.g;
-        y -= chain.rest + t / chain.k;
-        assert!(x[2 * j].abs() < 1e-9, "mass {j} x = {}", x[2 * j]);
-        assert!(
-            (x[2 * j + 1] - y).abs() < 1e-9,
-            "mass {j}: y = {}",
-            x[2 * j + 1]
-        );
-    }
+    assert_hangs_in_equilibrium(&chain, &x);
 }
 
 #[test]
 fn mass_spring_chain_reaches_its_static_equilibrium() {
     let n = 30;
-    let mut chain = Chain {
-        n,
-        k: 250.0,
-        rest: 0.1,
-        m: (0..n).map(|j| 0.05 + 0.01 * j as f64).collect(),
-        g: 9.81,
-    };
+    let mut chain = Chain::hanging(n);
     // Start stretched out sideways (far from equilibrium).
     let mut x: Vec<f64> = (0..n).flat_map(|j| [0.1 * j as f64, 0.0]).collect();
     let mut fixed = vec![false; 2 * n];
@@ -357,10 +342,17 @@ fn mass_spring_chain_reaches_its_static_equilibrium() {
             },
         )
         .unwrap();
-    // Analytic: spring j carries the weight below it, T_j = g Σ_{i ≥ j} m_i, so its length is
-    // L + T_j/k and the chain hangs straight down.
+    assert_hangs_in_equilibrium(&chain, &x);
+    assert_eq!((x[0], x[1]), (0.0, 0.0), "the fixed DOFs moved");
+    assert!(stats.iterations > 2 && stats.iterations < 100, "{stats:?}");
+}
+
+/// Analytic static equilibrium of a hanging chain (top mass fixed at the origin): spring j
+/// carries the weight below it, T_j = g Σ_{i ≥ j} m_i, so its length is L + T_j/k and the chain
+/// hangs straight down.
+fn assert_hangs_in_equilibrium(chain: &Chain, x: &[f64]) {
     let mut y = 0.0;
-    for j in 1..n {
+    for j in 1..chain.n {
         let t: f64 = chain.m[j..].iter().sum::<f64>() * chain.g;
         y -= chain.rest + t / chain.k;
         assert!(x[2 * j].abs() < 1e-9, "mass {j} x = {}", x[2 * j]);
@@ -370,8 +362,6 @@ fn mass_spring_chain_reaches_its_static_equilibrium() {
             x[2 * j + 1]
         );
     }
-    assert_eq!((x[0], x[1]), (0.0, 0.0), "the fixed DOFs moved");
-    assert!(stats.iterations > 2 && stats.iterations < 100, "{stats:?}");
 }
 
 /// A particle falling onto a wall at x = 0 with a log barrier, one huge time step
