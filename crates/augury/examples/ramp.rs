@@ -1,9 +1,10 @@
 //! §3.3 in 2D: block sliding down a 30° ramp; displacement error against ½ a t² per mesh size.
 //!
-//! `cargo run --release -p femp-augury --example ramp`
+//! `cargo run --release -p femp-augury --example ramp` (environment: `ITER=N` iterations,
+//! default 1; `DTF=f` for Δt = f·h, default 2.5e-4; `TAUF=k` for τ = k·Δt, default 1).
 
 use femp_augury::TransferKind;
-use femp_augury::scenes::ramp;
+use femp_augury::scenes::ramp_with_tau;
 
 fn main() {
     let t_end = 0.2;
@@ -11,6 +12,10 @@ fn main() {
         .ok()
         .and_then(|s| s.parse().ok())
         .unwrap_or(1);
+    let tau_steps: f64 = std::env::var("TAUF")
+        .ok()
+        .and_then(|s| s.parse().ok())
+        .unwrap_or(1.0);
     for kind in [TransferKind::Apic, TransferKind::Pic] {
         for mu in [0.0, 0.2, 0.4] {
             for h in [1.0, 0.5, 0.25] {
@@ -20,7 +25,7 @@ fn main() {
                     .unwrap_or(2.5e-4)
                     * h;
                 let t0 = std::time::Instant::now();
-                match ramp(h, mu, kind, t_end, dt, iterations) {
+                match ramp_with_tau(h, mu, kind, t_end, dt, tau_steps * dt, iterations) {
                     Ok(r) => {
                         let (t, s) = *r.displacement.last().unwrap();
                         let exact = 0.5 * r.analytic_acceleration * t * t;

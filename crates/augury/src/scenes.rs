@@ -16,6 +16,8 @@ pub struct BlocksRun {
     pub separation_speed: f64,
     /// Smallest gap between the blocks' facing sides over the run (m).
     pub min_gap: f64,
+    /// The gap at the end (m).
+    pub final_gap: f64,
     /// Largest `|p(t) − p(0)| / Σ m|v|` over the run.
     pub max_p_error: f64,
     /// Largest `|L(t) − L(0)| / (2 Σ m|v|)` over the run (L with the APIC `B` term).
@@ -38,11 +40,42 @@ pub enum BlocksContact {
     Penalty,
 }
 
+/// Time stepping of [`head_on_blocks_with`].
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct HeadOnTiming {
+    /// Δt as a fraction of the explicit stability estimate.
+    pub dt_fraction: f64,
+    /// The look-ahead τ in time steps (the paper: 1).
+    pub tau_over_dt: f64,
+    /// Simulated time (s).
+    pub duration: f64,
+}
+
+impl Default for HeadOnTiming {
+    /// Δt = half the stable step, τ = Δt, 0.8 s.
+    fn default() -> Self {
+        Self {
+            dt_fraction: 0.5,
+            tau_over_dt: 1.0,
+            duration: 0.8,
+        }
+    }
+}
+
 /// Two 1 × 1 m neo-Hookean blocks (E = 1e3 Pa, ν = 0.3, ρ = 1, 8 × 8 cells each), 1 m apart,
 /// approaching at 1 m/s each; block B is raised by `offset` (0: head-on). Grid spacing twice the
 /// mesh size, quadratic B-spline, τ = Δt = half the stable step, one augury iteration; run for
 /// 0.8 s without gravity.
 pub fn head_on_blocks(contact: BlocksContact, offset: f64) -> Result<BlocksRun, AuguryError> {
+    head_on_blocks_with(contact, offset, &HeadOnTiming::default())
+}
+
+/// [`head_on_blocks`] with another time step, look-ahead τ or duration.
+pub fn head_on_blocks_with(
+    contact: BlocksContact,
+    offset: f64,
+    timing: &HeadOnTiming,
+) -> Result<BlocksRun, AuguryError> {
     const E: f64 = 1e3;
     const NU: f64 = 0.3;
     const RHO: f64 = 1.0;
@@ -63,14 +96,14 @@ pub fn head_on_blocks(contact: BlocksContact, offset: f64) -> Result<BlocksRun, 
         gravity: Vector2::zeros(),
     };
     let probe = ExplicitSystem::new(bodies, params(1.0), None);
-    let dt = probe.stable_dt(&[(mu, lambda, RHO), (mu, lambda, RHO)], 0.5);
+    let dt = probe.stable_dt(&[(mu, lambda, RHO), (mu, lambda, RHO)], timing.dt_fraction);
     let mut sys = match contact {
         BlocksContact::Augury(model, kind) => {
             let transfer = Transfer::<2>::new(2.0 / 8.0, Kernel::Quadratic, kind)?;
             let aug = AuguryContact::new(
                 transfer,
                 AuguryParams {
-                    tau: dt,
+                    tau: timing.tau_over_dt * dt,
                     iterations: 1,
                     model,
                 },
@@ -94,6 +127,7 @@ pub fn head_on_blocks(contact: BlocksContact, offset: f64) -> Result<BlocksRun, 
     // Every vertex stays within 2 m of the origin: Σ m |x × v| ≤ 2 Σ m |v|.
     let l_scale = 2.0 * p_scale;
     let (mut max_p_error, mut max_l_error, mut min_gap) = (0.0f64, 0.0f64, f64::INFINITY);
+    let mut final_gap = f64::INFINITY;
     let mut steps = 0;
     let momentum_a = |sys: &ExplicitSystem<2>| -> Vector2<f64> {
         let b = &sys.bodies[0];
@@ -103,7 +137,7 @@ pub fn head_on_blocks(contact: BlocksContact, offset: f64) -> Result<BlocksRun, 
         |sys: &ExplicitSystem<2>| -> Vector2<f64> { sys.bodies[0].contact_force.iter().sum() };
     let pa0 = momentum_a(&sys);
     let mut impulse = Vector2::zeros();
-    while sys.time < 0.8 {
+    while sys.time < timing.duration {
         let f0 = contact_a(&sys);
         sys.step()?;
         impulse += (f0 + contact_a(&sys)) * (0.5 * dt);
@@ -121,6 +155,7 @@ pub fn head_on_blocks(contact: BlocksContact, offset: f64) -> Result<BlocksRun, 
             .map(|x| x[0])
             .fold(f64::INFINITY, f64::min);
         min_gap = min_gap.min(xb - xa);
+        final_gap = xb - xa;
     }
     let com_v = |b: &ExplicitBody<2>| {
         b.v.iter()
@@ -132,6 +167,7 @@ pub fn head_on_blocks(contact: BlocksContact, offset: f64) -> Result<BlocksRun, 
     Ok(BlocksRun {
         separation_speed: com_v(&sys.bodies[1])[0] - com_v(&sys.bodies[0])[0],
         min_gap,
+        final_gap,
         max_p_error,
         max_l_error,
         impulse_error: (impulse - (momentum_a(&sys) - pa0)).norm() / pa0.norm(),
@@ -160,6 +196,19 @@ pub fn ramp(
     kind: TransferKind,
     t_end: f64,
     dt: f64,
+    iterations: usize,
+) -> Result<RampRun, AuguryError> {
+    ramp_with_tau(h, mu, kind, t_end, dt, dt, iterations)
+}
+
+/// [`ramp`] with a look-ahead τ other than Δt.
+pub fn ramp_with_tau(
+    h: f64,
+    mu: f64,
+    kind: TransferKind,
+    t_end: f64,
+    dt: f64,
+    tau: f64,
     iterations: usize,
 ) -> Result<RampRun, AuguryError> {
     const E: f64 = 1e10;
@@ -192,7 +241,7 @@ pub fn ramp(
     let contact = AuguryContact::new(
         transfer,
         AuguryParams {
-            tau: dt,
+            tau,
             iterations,
             model: ContactModel::Friction(mu),
         },

@@ -294,7 +294,7 @@ const PICTURES: &[Pictured] = &[
         up: None,
     },
     Pictured {
-        label: "ramp3d_n1_h1",
+        label: "ramp3d_n1_t1_h1",
         caption: "Ramp, N = 1, h = 1",
         keys: 2,
         last_only: true,
