@@ -365,6 +365,15 @@ pub fn blocks_impact_3d(ctx: &Ctx, out: &mut Outcome) -> Result<()> {
     Ok(())
 }
 
+/// `τ = Δt` or `τ = k Δt`.
+fn tau_label(steps: f64) -> String {
+    if steps == 1.0 {
+        "τ = Δt".to_string()
+    } else {
+        format!("τ = {steps} Δt")
+    }
+}
+
 /// §3.3 in 3D through `femp` scenes (`fixtures/scenes/augury_ramp_3d.json`): the paper's ramp
 /// (4 × 0.25 × 1.5, bottom fixed) and 1 × 1 × 1 block, ρ = 1e6, E = 1e10, ν = 0.3, μ = 0.2,
 /// g = 100 tilted by 30° (the ramp lies flat, gravity is turned), grid 0.5 h, Δt = 2.5e-5 h;
@@ -409,11 +418,7 @@ fn ramp_3d(ctx: &Ctx, out: &mut Outcome, series: &mut Vec<Series>) -> Result<()>
             v["augury"]["grid_spacing"] = serde_json::json!(0.5 * h);
             v["augury"]["iterations"] = serde_json::json!(iterations);
             v["augury"]["tau"] = serde_json::json!(tau_steps * 2.5e-5 * h);
-            let tau_name = if tau_steps == 1.0 {
-                "τ = Δt".to_string()
-            } else {
-                format!("τ = {tau_steps} Δt")
-            };
+            let tau_name = tau_label(tau_steps);
             let label = format!("ramp3d_n{iterations}_t{tau_steps}_h{h}");
             let (_, probes) =
                 ctx.run_scene_probe::<3, (f64, f64)>(&label, &serde_json::to_string(&v)?, |w| {
@@ -465,11 +470,7 @@ fn ramp_3d(ctx: &Ctx, out: &mut Outcome, series: &mut Vec<Series>) -> Result<()>
     ));
     for (n, tau_steps, checked, errs) in errors.iter().filter(|e| e.3.len() > 1) {
         let shrinking = errs.windows(2).all(|w| w[1].abs() < w[0].abs());
-        let tau_name = if *tau_steps == 1.0 {
-            "τ = Δt".to_string()
-        } else {
-            format!("τ = {tau_steps} Δt")
-        };
+        let tau_name = tau_label(*tau_steps);
         let figure = format!("3D APIC N = {n}, {tau_name}: |error| shrinks with each refinement");
         let measured = if shrinking { "yes" } else { "no" };
         if !checked {
