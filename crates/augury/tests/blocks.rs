@@ -6,9 +6,9 @@
 //! `docs/augury.md`): the paper's "they stick without the separation iteration and separate
 //! with it". What the outcome depends on is the look-ahead τ (tested below): with τ = Δt at
 //! half the stable step the blocks rebound without the iteration and the iteration reduces the
-//! rebound; with τ = Δt a twentieth of the stable step (the paper's regime) they stick without
-//! the iteration — at a gap of about two grid cells, not zero — and the iteration does not
-//! separate them either.
+//! rebound; with τ = Δt a twentieth of the stable step (the paper's §3.2 runs at 0.03) they
+//! stick without the iteration — at a gap of about two grid cells, not zero — and the iteration
+//! does not separate them either.
 
 use femp_augury::scenes::{BlocksContact, HeadOnTiming, head_on_blocks, head_on_blocks_with};
 use femp_augury::{ContactModel, TransferKind};
