@@ -148,6 +148,14 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                         w.dt / a.stable_dt,
                         a.stable_dt
                     );
+                    // τ, not Δt, sets how strongly the correction acts (docs/augury.md).
+                    if let Some(c) = &a.system.contact {
+                        let tau = c.params().tau;
+                        s += &format!(
+                            ", look-ahead τ = {tau:.3e} s ({:.2} × the estimate)",
+                            tau / a.stable_dt
+                        );
+                    }
                 }
                 s
             }

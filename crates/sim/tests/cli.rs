@@ -58,6 +58,28 @@ fn check_accepts_a_valid_scene_and_reports_its_size() {
     );
 }
 
+/// For augury scenes `check` reports Δt and the look-ahead τ against the explicit stability
+/// estimate (τ sets how strongly the correction acts, `docs/augury.md`).
+#[test]
+fn check_reports_the_augury_time_step_and_look_ahead() {
+    let p = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../../fixtures/scenes/augury_blocks_3d.json"
+    );
+    let out = femp(&["check", p]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        text.contains("Δt = 1.000e-4 s (0.03 × the explicit stability estimate")
+            && text.contains("look-ahead τ = 1.000e-4 s (0.03 × the estimate)"),
+        "{text}"
+    );
+}
+
 #[test]
 fn check_names_the_field_of_a_bad_scene_without_a_backtrace() {
     let dir = tempfile::tempdir().unwrap();
