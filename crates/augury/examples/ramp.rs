@@ -6,24 +6,23 @@
 use femp_augury::TransferKind;
 use femp_augury::scenes::ramp_with_tau;
 
+/// `NAME` from the environment, or `default`.
+fn env_or<T: std::str::FromStr>(name: &str, default: T) -> T {
+    std::env::var(name)
+        .ok()
+        .and_then(|s| s.parse().ok())
+        .unwrap_or(default)
+}
+
 fn main() {
     let t_end = 0.2;
-    let iterations: usize = std::env::var("ITER")
-        .ok()
-        .and_then(|s| s.parse().ok())
-        .unwrap_or(1);
-    let tau_steps: f64 = std::env::var("TAUF")
-        .ok()
-        .and_then(|s| s.parse().ok())
-        .unwrap_or(1.0);
+    let iterations: usize = env_or("ITER", 1);
+    let tau_steps: f64 = env_or("TAUF", 1.0);
+    let dt_per_h: f64 = env_or("DTF", 2.5e-4);
     for kind in [TransferKind::Apic, TransferKind::Pic] {
         for mu in [0.0, 0.2, 0.4] {
             for h in [1.0, 0.5, 0.25] {
-                let dt = std::env::var("DTF")
-                    .ok()
-                    .and_then(|s| s.parse::<f64>().ok())
-                    .unwrap_or(2.5e-4)
-                    * h;
+                let dt = dt_per_h * h;
                 let t0 = std::time::Instant::now();
                 match ramp_with_tau(h, mu, kind, t_end, dt, tau_steps * dt, iterations) {
                     Ok(r) => {

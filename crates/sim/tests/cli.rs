@@ -14,6 +14,17 @@ fn femp(args: &[&str]) -> Output {
         .expect("femp runs")
 }
 
+/// `femp check PATH`, which must succeed; its standard output.
+fn check_ok(path: &str) -> String {
+    let out = femp(&["check", path]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    String::from_utf8_lossy(&out.stdout).into_owned()
+}
+
 fn scene(dir: &Path, name: &str, v: &Value) -> String {
     let p = dir.join(name);
     std::fs::write(&p, serde_json::to_string_pretty(v).unwrap()).unwrap();
@@ -44,13 +55,7 @@ fn falling_block(max_newton: usize) -> Value {
 fn check_accepts_a_valid_scene_and_reports_its_size() {
     let dir = tempfile::tempdir().unwrap();
     let p = scene(dir.path(), "ok.json", &falling_block(50));
-    let out = femp(&["check", &p]);
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let text = String::from_utf8_lossy(&out.stdout);
+    let text = check_ok(&p);
     // 0.4 × 0.2 m at h = 0.05 with 4 particles per cell: 16 × 8 particles; the plate 21 × 2.
     assert!(
         text.contains("valid 2D scene, 128 particles, 42 FEM vertices"),
@@ -66,13 +71,7 @@ fn check_reports_the_augury_time_step_and_look_ahead() {
         env!("CARGO_MANIFEST_DIR"),
         "/../../fixtures/scenes/augury_blocks_3d.json"
     );
-    let out = femp(&["check", p]);
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let text = String::from_utf8_lossy(&out.stdout);
+    let text = check_ok(p);
     assert!(
         text.contains("Δt = 1.000e-4 s (0.03 × the explicit stability estimate")
             && text.contains("look-ahead τ = 1.000e-4 s (0.03 × the estimate)"),
