@@ -1,9 +1,12 @@
 //! Head-on blocks through augury contact: rebound speed and closest gap per contact model and
-//! transfer, then the same against the look-ahead τ (the figures quoted in `docs/augury.md`).
+//! transfer, against the look-ahead τ and under refinement, and the damping of a lone vibrating
+//! block (the figures quoted in `docs/augury.md`).
 //!
 //! `cargo run --release -p femp-augury --example blocks`
 
-use femp_augury::scenes::{BlocksContact, HeadOnTiming, head_on_blocks, head_on_blocks_with};
+use femp_augury::scenes::{
+    BlocksContact, HeadOnSetup, head_on_blocks, head_on_blocks_with, vibrating_block,
+};
 use femp_augury::{ContactModel, TransferKind};
 
 fn main() {
@@ -37,10 +40,11 @@ fn main() {
     );
     for tau in [0.5, 0.05, 0.01] {
         let dt_fraction = f64::min(tau, 0.5);
-        let timing = HeadOnTiming {
+        let timing = HeadOnSetup {
             dt_fraction,
             tau_over_dt: tau / dt_fraction,
             duration: 1.0,
+            ..HeadOnSetup::default()
         };
         for model in &models[..3] {
             for kind in [TransferKind::Apic, TransferKind::Pic] {
@@ -51,6 +55,54 @@ fn main() {
                     ),
                     Err(e) => println!("τ = {tau} Δt_s, {model:?} {kind:?}: {e}"),
                 }
+            }
+        }
+    }
+    // Refinement: mesh and grid together (grid = 2 × mesh size), τ = Δt = half the stable step.
+    println!(
+        "\nunder refinement, τ = Δt = Δt_s / 2, 2 s (relative speed at the end / closest gap in grid cells / time within one cell):"
+    );
+    for cells in [8, 16, 32, 64] {
+        let setup = HeadOnSetup {
+            cells,
+            duration: 2.0,
+            ..HeadOnSetup::default()
+        };
+        let cell = 2.0 / cells as f64;
+        for kind in [TransferKind::Apic, TransferKind::Pic] {
+            for model in &models[..3] {
+                match head_on_blocks_with(BlocksContact::Augury(*model, kind), 0.0, &setup) {
+                    Ok(r) => println!(
+                        "{cells} × {cells}, {model:?} {kind:?}: {:+.3} m/s, {:.3} cells, {:.3} s",
+                        r.separation_speed,
+                        r.min_gap / cell,
+                        r.contact_time
+                    ),
+                    Err(e) => println!("{cells} × {cells}, {model:?} {kind:?}: {e}"),
+                }
+            }
+        }
+    }
+    // Self-damping: a lone block in its lowest compression mode, τ = Δt = Δt_s / 20, 0.5 s.
+    println!("\na lone vibrating block, τ = Δt = Δt_s / 20: energy left after 0.5 s");
+    for cells in [8, 16, 32] {
+        let setup = HeadOnSetup {
+            cells,
+            dt_fraction: 0.05,
+            tau_over_dt: 1.0,
+            duration: 0.5,
+        };
+        for (label, contact) in [
+            ("no contact", None),
+            ("APIC", Some((ContactModel::Sticky, TransferKind::Apic))),
+            ("PIC", Some((ContactModel::Sticky, TransferKind::Pic))),
+        ] {
+            match vibrating_block(contact, &setup) {
+                Ok(r) => println!(
+                    "{cells} × {cells}, {label}: {:.3}",
+                    r.energy.last().map_or(f64::NAN, |e| e.1)
+                ),
+                Err(e) => println!("{cells} × {cells}, {label}: {e}"),
             }
         }
     }

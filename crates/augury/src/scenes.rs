@@ -1,7 +1,7 @@
 //! Small reference scenes shared by the tests, the examples and the validation suite.
 
 use femp_fem::mesh::generate::rectangle;
-use femp_fem::{Material, NeoHookean};
+use femp_fem::{Boundary, Material, Mesh, NeoHookean, lumped_masses};
 use femp_kernels::Kernel;
 use nalgebra::{Vector2, Vector3};
 
@@ -18,6 +18,10 @@ pub struct BlocksRun {
     pub min_gap: f64,
     /// The gap at the end (m).
     pub final_gap: f64,
+    /// Time the facing sides spent less than one background grid cell apart (s): for a
+    /// bouncing elastic impact of these blocks about `2 L / c_p ≈ 0.055 s`; longer when they
+    /// stick.
+    pub contact_time: f64,
     /// Largest `|p(t) − p(0)| / Σ m|v|` over the run.
     pub max_p_error: f64,
     /// Largest `|L(t) − L(0)| / (2 Σ m|v|)` over the run (L with the APIC `B` term).
@@ -40,9 +44,12 @@ pub enum BlocksContact {
     Penalty,
 }
 
-/// Time stepping of [`head_on_blocks_with`].
+/// Resolution and time stepping of [`head_on_blocks_with`].
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub struct HeadOnTiming {
+pub struct HeadOnSetup {
+    /// Elements per block side (each block is `cells × cells` squares, two triangles each); the
+    /// background grid spacing is twice the mesh size, `2 / cells` m.
+    pub cells: usize,
     /// Δt as a fraction of the explicit stability estimate.
     pub dt_fraction: f64,
     /// The look-ahead τ in time steps (the paper: 1).
@@ -51,10 +58,11 @@ pub struct HeadOnTiming {
     pub duration: f64,
 }
 
-impl Default for HeadOnTiming {
-    /// Δt = half the stable step, τ = Δt, 0.8 s.
+impl Default for HeadOnSetup {
+    /// 8 × 8 elements per block, Δt = half the stable step, τ = Δt, 0.8 s.
     fn default() -> Self {
         Self {
+            cells: 8,
             dt_fraction: 0.5,
             tau_over_dt: 1.0,
             duration: 0.8,
@@ -67,22 +75,29 @@ impl Default for HeadOnTiming {
 /// mesh size, quadratic B-spline, τ = Δt = half the stable step, one augury iteration; run for
 /// 0.8 s without gravity.
 pub fn head_on_blocks(contact: BlocksContact, offset: f64) -> Result<BlocksRun, AuguryError> {
-    head_on_blocks_with(contact, offset, &HeadOnTiming::default())
+    head_on_blocks_with(contact, offset, &HeadOnSetup::default())
 }
 
-/// [`head_on_blocks`] with another time step, look-ahead τ or duration.
+/// [`head_on_blocks`] at another resolution (mesh and grid refined together), time step,
+/// look-ahead τ or duration.
 pub fn head_on_blocks_with(
     contact: BlocksContact,
     offset: f64,
-    timing: &HeadOnTiming,
+    setup: &HeadOnSetup,
 ) -> Result<BlocksRun, AuguryError> {
+    let cells = check_cells(setup.cells)?;
     const E: f64 = 1e3;
     const NU: f64 = 0.3;
     const RHO: f64 = 1.0;
     let fem = |e: femp_fem::FemError| AuguryError::Fem(e.to_string());
     let block = |name: &str, x0: f64, y0: f64, v: f64| -> Result<ExplicitBody<2>, AuguryError> {
-        let mesh =
-            rectangle(Vector2::new(x0, y0), Vector2::new(x0 + 1.0, y0 + 1.0), 8, 8).map_err(fem)?;
+        let mesh = rectangle(
+            Vector2::new(x0, y0),
+            Vector2::new(x0 + 1.0, y0 + 1.0),
+            cells,
+            cells,
+        )
+        .map_err(fem)?;
         let mat = Material::NeoHookean(NeoHookean::from_young_poisson(E, NU).map_err(fem)?);
         let mut b = ExplicitBody::new(name, &mesh, mat, RHO)?;
         b.set_rigid_velocity(Vector2::new(v, 0.0), Vector3::zeros());
@@ -96,14 +111,15 @@ pub fn head_on_blocks_with(
         gravity: Vector2::zeros(),
     };
     let probe = ExplicitSystem::new(bodies, params(1.0), None);
-    let dt = probe.stable_dt(&[(mu, lambda, RHO), (mu, lambda, RHO)], timing.dt_fraction);
+    let dt = probe.stable_dt(&[(mu, lambda, RHO), (mu, lambda, RHO)], setup.dt_fraction);
+    let grid_spacing = 2.0 / cells as f64;
     let mut sys = match contact {
         BlocksContact::Augury(model, kind) => {
-            let transfer = Transfer::<2>::new(2.0 / 8.0, Kernel::Quadratic, kind)?;
+            let transfer = Transfer::<2>::new(grid_spacing, Kernel::Quadratic, kind)?;
             let aug = AuguryContact::new(
                 transfer,
                 AuguryParams {
-                    tau: timing.tau_over_dt * dt,
+                    tau: setup.tau_over_dt * dt,
                     iterations: 1,
                     model,
                 },
@@ -113,7 +129,7 @@ pub fn head_on_blocks_with(
         BlocksContact::Penalty => {
             let mut sys = ExplicitSystem::new(probe.bodies, params(dt), None);
             // Stable with the explicit step: √(k/m) Δt ≈ 0.5 for the vertex masses here.
-            sys.penalty = Some(PenaltyContact::new(2.0 * E, 0.5 / 8.0)?);
+            sys.penalty = Some(PenaltyContact::new(2.0 * E, 0.5 / cells as f64)?);
             sys
         }
     };
@@ -128,6 +144,7 @@ pub fn head_on_blocks_with(
     let l_scale = 2.0 * p_scale;
     let (mut max_p_error, mut max_l_error, mut min_gap) = (0.0f64, 0.0f64, f64::INFINITY);
     let mut final_gap = f64::INFINITY;
+    let mut contact_time = 0.0;
     let mut steps = 0;
     let momentum_a = |sys: &ExplicitSystem<2>| -> Vector2<f64> {
         let b = &sys.bodies[0];
@@ -137,7 +154,7 @@ pub fn head_on_blocks_with(
         |sys: &ExplicitSystem<2>| -> Vector2<f64> { sys.bodies[0].contact_force.iter().sum() };
     let pa0 = momentum_a(&sys);
     let mut impulse = Vector2::zeros();
-    while sys.time < timing.duration {
+    while sys.time < setup.duration {
         let f0 = contact_a(&sys);
         sys.step()?;
         impulse += (f0 + contact_a(&sys)) * (0.5 * dt);
@@ -156,6 +173,9 @@ pub fn head_on_blocks_with(
             .fold(f64::INFINITY, f64::min);
         min_gap = min_gap.min(xb - xa);
         final_gap = xb - xa;
+        if final_gap < grid_spacing {
+            contact_time += dt;
+        }
     }
     let com_v = |b: &ExplicitBody<2>| {
         b.v.iter()
@@ -168,11 +188,140 @@ pub fn head_on_blocks_with(
         separation_speed: com_v(&sys.bodies[1])[0] - com_v(&sys.bodies[0])[0],
         min_gap,
         final_gap,
+        contact_time,
         max_p_error,
         max_l_error,
         impulse_error: (impulse - (momentum_a(&sys) - pa0)).norm() / pa0.norm(),
         steps,
     })
+}
+
+/// The augury particles of a 2D mesh at rest: its boundary vertices with their lumped masses
+/// (density `rho`) and unit area-weighted outward normals — what [`ExplicitSystem`] hands the
+/// correction, for looking at the correction of a given velocity field on its own.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct BoundaryParticles {
+    /// Positions.
+    pub x: Vec<Vector2<f64>>,
+    /// Lumped masses.
+    pub mass: Vec<f64>,
+    /// Unit outward normals.
+    pub normal: Vec<Vector2<f64>>,
+}
+
+impl BoundaryParticles {
+    /// Append the boundary vertices of `mesh` (density `rho`); returns the range they occupy.
+    pub fn add(&mut self, mesh: &Mesh<2>, rho: f64) -> Result<std::ops::Range<usize>, AuguryError> {
+        let mass = lumped_masses(mesh, rho).map_err(|e| AuguryError::Fem(e.to_string()))?;
+        let b = Boundary::of(mesh);
+        let start = self.x.len();
+        let mut slot = vec![usize::MAX; mesh.num_vertices()];
+        for (k, &q) in b.vertices().iter().enumerate() {
+            slot[q] = start + k;
+            self.x.push(mesh.vertices()[q]);
+            self.mass.push(mass[q]);
+            self.normal.push(Vector2::zeros());
+        }
+        for (f, fv) in b.facets().iter().enumerate() {
+            let n = b.facet_normal(f, mesh.vertices());
+            for &q in &fv[..2] {
+                self.normal[slot[q]] += n;
+            }
+        }
+        for n in &mut self.normal[start..] {
+            let l = n.norm();
+            if l > 0.0 {
+                *n /= l;
+            }
+        }
+        Ok(start..self.x.len())
+    }
+}
+
+/// What [`vibrating_block`] measured.
+#[derive(Clone, Debug, PartialEq)]
+pub struct VibrationRun {
+    /// `(t, E(t) / E(0))`: kinetic + elastic energy relative to the start, about 100 samples.
+    pub energy: Vec<(f64, f64)>,
+    /// Steps taken.
+    pub steps: usize,
+}
+
+/// One block of [`head_on_blocks`] alone (1 × 1 m, `setup.cells` elements per side, same
+/// material), started in its lowest compression mode, `v_x = 0.2 sin(π x)` m/s with `x` from the
+/// block's centre, no gravity, nothing to touch. The mode is not affine, so the augury
+/// correction (`contact`: model and transfer, one iteration, grid twice the mesh size, τ and Δt
+/// from `setup`) damps it through the block's own boundary particles; without contact (`None`)
+/// central differences keep the energy. What the correction removes here is the energy an
+/// impact cannot give back as rebound (paper §3.2: non-affine fields "damped slightly").
+pub fn vibrating_block(
+    contact: Option<(ContactModel, TransferKind)>,
+    setup: &HeadOnSetup,
+) -> Result<VibrationRun, AuguryError> {
+    const E: f64 = 1e3;
+    const NU: f64 = 0.3;
+    const RHO: f64 = 1.0;
+    let cells = check_cells(setup.cells)?;
+    let fem = |e: femp_fem::FemError| AuguryError::Fem(e.to_string());
+    let mesh = rectangle(
+        Vector2::new(-0.5, 0.0),
+        Vector2::new(0.5, 1.0),
+        cells,
+        cells,
+    )
+    .map_err(fem)?;
+    let mat = Material::NeoHookean(NeoHookean::from_young_poisson(E, NU).map_err(fem)?);
+    let mut body = ExplicitBody::new("block", &mesh, mat, RHO)?;
+    for (x, v) in body.x.iter().zip(body.v.iter_mut()) {
+        *v = Vector2::new(0.2 * (std::f64::consts::PI * x[0]).sin(), 0.0);
+    }
+    let mu = E / (2.0 * (1.0 + NU));
+    let lambda = E * NU / ((1.0 + NU) * (1.0 - 2.0 * NU));
+    let params = |dt| ExplicitParams {
+        dt,
+        gravity: Vector2::zeros(),
+    };
+    let probe = ExplicitSystem::new(vec![body], params(1.0), None);
+    let dt = probe.stable_dt(&[(mu, lambda, RHO)], setup.dt_fraction);
+    let correction = match contact {
+        Some((model, kind)) => Some(AuguryContact::new(
+            Transfer::<2>::new(2.0 / cells as f64, Kernel::Quadratic, kind)?,
+            AuguryParams {
+                tau: setup.tau_over_dt * dt,
+                iterations: 1,
+                model,
+            },
+        )?),
+        None => None,
+    };
+    let mut sys = ExplicitSystem::new(probe.bodies, params(dt), correction);
+    let total = |s: &ExplicitSystem<2>| s.kinetic_energy() + s.elastic_energy();
+    let e0 = total(&sys);
+    let record = ((setup.duration / dt) / 100.0).ceil().max(1.0) as usize;
+    let mut energy = vec![(0.0, 1.0)];
+    let mut steps = 0;
+    while sys.time < setup.duration - 0.5 * dt {
+        sys.step()?;
+        steps += 1;
+        if steps % record == 0 {
+            energy.push((sys.time, total(&sys) / e0));
+        }
+    }
+    if energy.last().is_some_and(|&(t, _)| t < sys.time) {
+        energy.push((sys.time, total(&sys) / e0));
+    }
+    Ok(VibrationRun { energy, steps })
+}
+
+fn check_cells(cells: usize) -> Result<usize, AuguryError> {
+    if cells == 0 {
+        return Err(AuguryError::BadParameter {
+            name: "cells per block side",
+            value: 0.0,
+            requirement: "must be at least 1",
+        });
+    }
+    Ok(cells)
 }
 
 /// What [`ramp`] measured.
@@ -182,6 +331,17 @@ pub struct RampRun {
     pub displacement: Vec<(f64, f64)>,
     /// The analytic acceleration `g (sin θ − μ cos θ)` (0 if it sticks).
     pub analytic_acceleration: f64,
+    /// Contact forces on the block from `t_end / 4` on (after the first settling), summed over
+    /// the steps: tangential (up the ramp) over normal. Coulomb sliding: μ.
+    pub friction_ratio: f64,
+    /// The same normal force over `m g cos θ` (1 for a block resting on the ramp).
+    pub normal_load: f64,
+    /// Spread of the normal contact force over the block's bottom vertices: standard deviation
+    /// over mean, averaged over the same steps (0: evenly shared).
+    pub normal_force_spread: f64,
+    /// Share of the bottom vertices pressed against the ramp whose tangential contact force
+    /// is at the Coulomb limit (within 2 %), over the same steps (sliding: all of them).
+    pub at_coulomb_limit: f64,
     /// Steps taken.
     pub steps: usize,
 }
@@ -255,10 +415,18 @@ pub fn ramp_with_tau(
         Some(contact),
     );
     let dir = Vector2::new(c, -s);
+    let normal = Vector2::new(s, c);
     let c0 = sys.bodies[1].centre_of_mass();
+    // The block's bottom face (local y = 0).
+    let bottom: Vec<usize> = (0..sys.bodies[1].x.len())
+        .filter(|&k| normal.dot(&sys.bodies[1].x[k]).abs() < 1e-9)
+        .collect();
     let mut displacement = vec![(0.0, 0.0)];
     let record = ((t_end / dt) / 200.0).ceil().max(1.0) as usize;
     let mut steps = 0;
+    let (mut f_n, mut f_t, mut spread, mut counted) = (0.0, 0.0, 0.0, 0usize);
+    let (mut pressed, mut limited, mut window) = (0usize, 0usize, 0usize);
+    let mut fn_bottom = Vec::with_capacity(bottom.len());
     while sys.time < t_end - 0.5 * dt {
         sys.step()?;
         steps += 1;
@@ -266,10 +434,42 @@ pub fn ramp_with_tau(
             let d = (sys.bodies[1].centre_of_mass() - c0).dot(&dir);
             displacement.push((sys.time, d));
         }
+        if sys.time < 0.25 * t_end {
+            continue;
+        }
+        window += 1;
+        let block = &sys.bodies[1];
+        let total: Vector2<f64> = block.contact_force.iter().sum();
+        f_n += total.dot(&normal);
+        f_t -= total.dot(&dir);
+        fn_bottom.clear();
+        fn_bottom.extend(bottom.iter().map(|&k| block.contact_force[k].dot(&normal)));
+        let mean = fn_bottom.iter().sum::<f64>() / fn_bottom.len().max(1) as f64;
+        if mean > 0.0 {
+            let var =
+                fn_bottom.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / fn_bottom.len() as f64;
+            spread += var.sqrt() / mean;
+            counted += 1;
+        }
+        for &k in &bottom {
+            let f = block.contact_force[k];
+            let fk = f.dot(&normal);
+            if fk > 0.0 {
+                pressed += 1;
+                if -f.dot(&dir) >= 0.98 * mu * fk {
+                    limited += 1;
+                }
+            }
+        }
     }
+    let weight = sys.bodies[1].total_mass() * G * c;
     Ok(RampRun {
         displacement,
         analytic_acceleration: (G * (s - mu * c)).max(0.0),
+        friction_ratio: f_t / f_n,
+        normal_load: f_n / window.max(1) as f64 / weight,
+        normal_force_spread: spread / counted.max(1) as f64,
+        at_coulomb_limit: limited as f64 / pressed.max(1) as f64,
         steps,
     })
 }

@@ -1,7 +1,7 @@
 //! The augury paper's experiments (§3.1–3.3) through `femp-augury`.
 
 use anyhow::Result;
-use femp_augury::scenes::{BlocksContact, head_on_blocks, ramp};
+use femp_augury::scenes::{BlocksContact, HeadOnSetup, head_on_blocks, head_on_blocks_with, ramp};
 use femp_augury::two_particle::{integrate, simulate};
 use femp_augury::{ContactModel, TransferKind};
 use femp_kernels::Kernel;
@@ -127,11 +127,108 @@ pub fn blocks_impact(ctx: &Ctx) -> Result<Outcome> {
     }
     out.notes.push(
         "2D rows: an analogue of the paper's 3D scene, two 1 × 1 neo-Hookean blocks (8 × 8 cells), the \
-         second raised by 0.4, approaching at 1 m/s each; grid 2× mesh size, τ = Δt; see \
-         docs/augury.md for the rebound behaviour, which differs from the paper."
+         second raised by 0.4, approaching at 1 m/s each; grid 2× mesh size, τ = Δt. At this \
+         resolution the rebound differs from the paper; the refinement rows below show the \
+         paper's behaviour appearing (docs/augury.md)."
             .into(),
     );
+    blocks_refinement_2d(ctx, &mut out)?;
     Ok(out)
+}
+
+/// §2.2–2.3 in 2D under refinement: the head-on blocks (no offset) at 8, 16 and 32 elements per
+/// side (full tier: and 64, also at the paper's small τ), grid 2× mesh size, APIC without and
+/// with one separation iteration, PIC without. Checked at the finest resolution: APIC contact at
+/// zero gap, the iteration's rebound, and sticking without it.
+fn blocks_refinement_2d(ctx: &Ctx, out: &mut Outcome) -> Result<()> {
+    let mut runs: Vec<(usize, f64)> = vec![(8, 0.5), (16, 0.5), (32, 0.5)];
+    if ctx.tier == Tier::Full {
+        runs.extend([(64, 0.5), (32, 0.05), (64, 0.05)]);
+    }
+    for &(cells, tau) in &runs {
+        let setup = HeadOnSetup {
+            cells,
+            dt_fraction: tau,
+            tau_over_dt: 1.0,
+            duration: 1.0,
+        };
+        let cell = 2.0 / cells as f64;
+        let run =
+            |model, kind| head_on_blocks_with(BlocksContact::Augury(model, kind), 0.0, &setup);
+        let sticky = run(ContactModel::Sticky, TransferKind::Apic)?;
+        let separation = run(ContactModel::Separation, TransferKind::Apic)?;
+        let pic = run(ContactModel::Sticky, TransferKind::Pic)?;
+        let tag = format!("2D head-on, {cells} × {cells}, τ = Δt = {tau} Δt_s");
+        for (name, r) in [
+            ("APIC N = 0", &sticky),
+            ("APIC N = 1", &separation),
+            ("PIC N = 0", &pic),
+        ] {
+            out.checks.push(Check::info(
+                &format!("{tag}, {name}: relative speed at 1 s / closest gap / time within a cell"),
+                format!(
+                    "{:+.2} m/s / {:.3} cells / {:.3} s",
+                    r.separation_speed,
+                    r.min_gap / cell,
+                    r.contact_time
+                ),
+                match name {
+                    "APIC N = 0" => "stuck (paper Fig. 2), zero gap",
+                    "APIC N = 1" => "rebound (paper Fig. 4)",
+                    _ => "stuck at a gap ∝ grid (paper Fig. 3)",
+                }
+                .into(),
+            ));
+        }
+        if cells == 32 && tau == 0.5 {
+            out.checks.push(Check::holds(
+                &format!("{tag}: APIC closest gap, N = 0 and N = 1"),
+                format!(
+                    "{:.4} / {:.4} cells",
+                    sticky.min_gap / cell,
+                    separation.min_gap / cell
+                ),
+                "0 < gap < 0.01 cells (paper §2.2: zero gap)",
+                "—",
+                [&sticky, &separation]
+                    .iter()
+                    .all(|r| r.min_gap > 0.0 && r.min_gap < 0.01 * cell),
+            ));
+            out.checks.push(Check::holds(
+                &format!("{tag}: APIC N = 1 rebounds"),
+                format!(
+                    "{:+.2} m/s after {:.3} s in contact",
+                    separation.separation_speed, separation.contact_time
+                ),
+                "> +1 m/s (half the approach), < 0.2 s in contact (paper §2.3)",
+                "—",
+                separation.separation_speed > 1.0 && separation.contact_time < 0.2,
+            ));
+            out.checks.push(Check::holds(
+                &format!("{tag}: APIC N = 0 stays together"),
+                format!(
+                    "gap at 1 s {:.3} cells, {:.3} s within a cell (N = 1: {:.3} s)",
+                    sticky.final_gap / cell,
+                    sticky.contact_time,
+                    separation.contact_time
+                ),
+                "within a cell at 1 s, ≥ 3× as long as N = 1 (paper Fig. 2)",
+                "—",
+                sticky.final_gap < cell && sticky.contact_time > 3.0 * separation.contact_time,
+            ));
+        }
+    }
+    out.notes.push(
+        "2D refinement rows: the head-on blocks (no offset) with mesh and grid refined together \
+         (grid 2× mesh size), τ = Δt as a fraction of the stable step Δt_s, 1 s (contact at \
+         ≈ 0.47 s). 'Time within a cell' is how long the facing sides stayed less than one grid \
+         cell apart (an elastic impact of these blocks lasts 2L/c_p ≈ 0.055 s). At 8 × 8 the \
+         correction's damping of each block's own non-affine boundary motion takes the rebound \
+         energy (docs/augury.md); under refinement APIC meets at zero gap, and the iteration \
+         separates blocks that stay together without it."
+            .into(),
+    );
+    Ok(())
 }
 
 /// §3.2 in 3D through `femp` scenes (`fixtures/scenes/augury_blocks_3d.json`, the paper's
@@ -140,7 +237,7 @@ pub fn blocks_impact(ctx: &Ctx) -> Result<Outcome> {
 pub fn blocks_impact_3d(ctx: &Ctx, out: &mut Outcome) -> Result<()> {
     let hs: &[f64] = match ctx.tier {
         Tier::Quick => &[1.0, 0.5],
-        Tier::Full => &[1.0, 0.5, 0.25],
+        Tier::Full => &[1.0, 0.5, 0.25, 0.125],
     };
     let base: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(
         ctx.root.join("fixtures/scenes/augury_blocks_3d.json"),
@@ -507,7 +604,7 @@ pub fn ramp_experiment(ctx: &Ctx) -> Result<Outcome> {
     let mut out = Outcome::default();
     let hs: &[f64] = match ctx.tier {
         Tier::Quick => &[1.0, 0.5, 0.25],
-        Tier::Full => &[1.0, 0.5, 0.25, 0.125],
+        Tier::Full => &[1.0, 0.5, 0.25, 0.125, 0.0625, 0.03125],
     };
     let mu = 0.2;
     let mut series = Vec::new();
@@ -519,9 +616,16 @@ pub fn ramp_experiment(ctx: &Ctx) -> Result<Outcome> {
         let exact = 0.5 * r.analytic_acceleration * t * t;
         errors.push((s - exact) / exact);
         out.checks.push(Check::info(
-            &format!("APIC N = 10, h = {h}: displacement error"),
-            format!("{:+.1} %", 100.0 * (s - exact) / exact),
-            "→ 0 under refinement".into(),
+            &format!(
+                "APIC N = 10, h = {h}: displacement error (tangential / normal contact force on \
+                 the block while sliding)"
+            ),
+            format!(
+                "{:+.1} % ({:.3})",
+                100.0 * (s - exact) / exact,
+                r.friction_ratio
+            ),
+            format!("→ 0 under refinement ({mu})"),
         ));
         series.push(Series::line(
             format!("APIC N = 10, h = {h}"),
@@ -539,33 +643,56 @@ pub fn ramp_experiment(ctx: &Ctx) -> Result<Outcome> {
             ));
         }
     }
-    let shrinking = errors.windows(2).all(|w| w[1].abs() < w[0].abs());
-    out.checks.push(Check {
-        figure: "APIC N = 10: |error| shrinks with each refinement".into(),
-        measured: if shrinking { "yes".into() } else { "no".into() },
-        expected: "yes".into(),
-        tolerance: "—".into(),
-        status: if shrinking {
-            super::Status::Pass
-        } else {
-            super::Status::Fail
-        },
-    });
+    // The paper's meshes are h = 1 … 0.25 (the first three); the full tier refines further.
+    let list = |e: &[f64]| {
+        e.iter()
+            .map(|x| format!("{:+.1} %", 100.0 * x))
+            .collect::<Vec<_>>()
+            .join(" → ")
+    };
+    let paper_range = &errors[..3];
+    out.checks.push(Check::holds(
+        "APIC N = 10: |error| shrinks with each refinement, h = 1 → 0.25 (the paper's meshes)",
+        list(paper_range),
+        "shrinking (paper Fig. 11)",
+        "—",
+        paper_range.windows(2).all(|w| w[1].abs() < w[0].abs()),
+    ));
+    if errors.len() > 3 {
+        let finer = &errors[2..];
+        out.checks.push(Check::holds(
+            &format!(
+                "APIC N = 10: |error| keeps shrinking beyond the paper's meshes, h = 0.25 → {}",
+                hs[hs.len() - 1]
+            ),
+            list(finer),
+            "shrinking",
+            "—",
+            finer.windows(2).all(|w| w[1].abs() < w[0].abs()),
+        ));
+    }
     ramp_3d(ctx, &mut out, &mut series3)?;
     let r1 = ramp(0.25, mu, TransferKind::Apic, 0.2, 2.5e-4 * 0.25, 1)?;
     let (t, s) = *r1.displacement.last().expect("recorded");
     let exact = 0.5 * r1.analytic_acceleration * t * t;
     out.checks.push(Check::info(
-        "APIC N = 1 (paper), h = 0.25: displacement error",
-        format!("{:+.1} %", 100.0 * (s - exact) / exact),
-        "≈ 0 (paper, Fig. 11)".into(),
+        "APIC N = 1 (paper), h = 0.25: displacement error (tangential / normal contact force)",
+        format!(
+            "{:+.1} % ({:.3})",
+            100.0 * (s - exact) / exact,
+            r1.friction_ratio
+        ),
+        format!("≈ 0 (paper, Fig. 11) ({mu})"),
     ));
     series.push(Series::line("APIC N = 1, h = 0.25", r1.displacement, 4));
     out.notes.push(
         "2D analogue of the paper's 3D ramp (μ = 0.2, g = 100, ρ = 1e6, E = 1e10, grid 0.5 h, \
          τ = Δt = 2.5e-4 h). With the paper's single iteration the block sticks to the ramp \
          (not reproduced); with ten iterations the displacement approaches the analytic one as \
-         the mesh is refined."
+         the mesh is refined over the paper's meshes (h = 1 … 0.25). The full tier refines \
+         further: from h = 0.0625 the block slides faster than Coulomb allows — the tangential \
+         force the correction applies falls with h and hardly depends on μ (docs/augury.md) — \
+         and the error does not converge."
             .into(),
     );
     let png = charts::write(
