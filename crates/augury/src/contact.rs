@@ -137,7 +137,8 @@ impl<const D: usize> AuguryContact<D> {
             // W = the undesirable part of the change proposed so far (eq. 38 / 44–46).
             let mut any = false;
             for p in 0..n {
-                let (w, wb) = undesirable(self.params.model, &self.dv[p], &self.db[p], &normal[p]);
+                let (w, wb) =
+                    undesirable_part(self.params.model, &self.dv[p], &self.db[p], &normal[p]);
                 any |= w != SVector::<f64, D>::zeros() || wb != SMatrix::<f64, D, D>::zeros();
                 self.wv[p] = w;
                 self.wb[p] = if apic { wb } else { SMatrix::zeros() };
@@ -165,8 +166,12 @@ impl<const D: usize> AuguryContact<D> {
     }
 }
 
-/// The undesirable part `(Δv^u, ΔB^u)` of a proposed change.
-fn undesirable<const D: usize>(
+/// The undesirable part `(Δv^u, ΔB^u)` of a proposed change `(Δv, ΔB)` of a particle with unit
+/// outward normal `n` (zero: unconstrained, nothing undesirable) under `model`: eq. 38
+/// (separation: all of it when `Δv·n > 0`) or eqs. 42–45 (friction: also the tangential part
+/// beyond `μ |Δv·n|`, and all of `ΔB`). The iterations apply `G` to it; a change whose
+/// undesirable part is zero satisfies the contact model at that particle.
+pub fn undesirable_part<const D: usize>(
     model: ContactModel,
     dv: &SVector<f64, D>,
     db: &SMatrix<f64, D, D>,

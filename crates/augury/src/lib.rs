@@ -27,6 +27,6 @@ mod operator;
 pub mod scenes;
 pub mod two_particle;
 
-pub use contact::{AuguryContact, AuguryParams, ContactModel};
+pub use contact::{AuguryContact, AuguryParams, ContactModel, undesirable_part};
 pub use error::AuguryError;
 pub use operator::{Transfer, TransferKind, angular_momentum, linear_momentum};
