@@ -3,7 +3,7 @@
 use femp_fem::mesh::generate::rectangle;
 use femp_fem::{Boundary, Material, Mesh, NeoHookean, lumped_masses};
 use femp_kernels::Kernel;
-use nalgebra::{Vector2, Vector3};
+use nalgebra::{Matrix2, Vector2, Vector3};
 
 use crate::explicit::{ExplicitBody, ExplicitParams, ExplicitSystem, PenaltyContact};
 use crate::{AuguryContact, AuguryError, AuguryParams, ContactModel, Transfer, TransferKind};
@@ -86,10 +86,8 @@ pub fn head_on_blocks_with(
     setup: &HeadOnSetup,
 ) -> Result<BlocksRun, AuguryError> {
     let cells = check_cells(setup.cells)?;
-    const E: f64 = 1e3;
-    const NU: f64 = 0.3;
-    const RHO: f64 = 1.0;
     let fem = |e: femp_fem::FemError| AuguryError::Fem(e.to_string());
+    let (mat, lame) = block_material()?;
     let block = |name: &str, x0: f64, y0: f64, v: f64| -> Result<ExplicitBody<2>, AuguryError> {
         let mesh = rectangle(
             Vector2::new(x0, y0),
@@ -98,20 +96,17 @@ pub fn head_on_blocks_with(
             cells,
         )
         .map_err(fem)?;
-        let mat = Material::NeoHookean(NeoHookean::from_young_poisson(E, NU).map_err(fem)?);
-        let mut b = ExplicitBody::new(name, &mesh, mat, RHO)?;
+        let mut b = ExplicitBody::new(name, &mesh, mat, BLOCK_RHO)?;
         b.set_rigid_velocity(Vector2::new(v, 0.0), Vector3::zeros());
         Ok(b)
     };
     let bodies = vec![block("a", -1.5, 0.0, 1.0)?, block("b", 0.5, offset, -1.0)?];
-    let mu = E / (2.0 * (1.0 + NU));
-    let lambda = E * NU / ((1.0 + NU) * (1.0 - 2.0 * NU));
     let params = |dt| ExplicitParams {
         dt,
         gravity: Vector2::zeros(),
     };
     let probe = ExplicitSystem::new(bodies, params(1.0), None);
-    let dt = probe.stable_dt(&[(mu, lambda, RHO), (mu, lambda, RHO)], setup.dt_fraction);
+    let dt = probe.stable_dt(&[lame, lame], setup.dt_fraction);
     let grid_spacing = 2.0 / cells as f64;
     let mut sys = match contact {
         BlocksContact::Augury(model, kind) => {
@@ -129,7 +124,7 @@ pub fn head_on_blocks_with(
         BlocksContact::Penalty => {
             let mut sys = ExplicitSystem::new(probe.bodies, params(dt), None);
             // Stable with the explicit step: √(k/m) Δt ≈ 0.5 for the vertex masses here.
-            sys.penalty = Some(PenaltyContact::new(2.0 * E, 0.5 / cells as f64)?);
+            sys.penalty = Some(PenaltyContact::new(2.0 * BLOCK_E, 0.5 / cells as f64)?);
             sys
         }
     };
@@ -236,6 +231,30 @@ impl BoundaryParticles {
         }
         Ok(start..self.x.len())
     }
+
+    /// The velocity change `τ Â` the correction makes for particle velocities `v` (one per
+    /// particle, `B = 0`), with τ = 1 on a quadratic B-spline grid of spacing `grid_spacing`.
+    pub fn velocity_change(
+        &self,
+        v: &[Vector2<f64>],
+        grid_spacing: f64,
+        kind: TransferKind,
+        model: ContactModel,
+        iterations: usize,
+    ) -> Result<Vec<Vector2<f64>>, AuguryError> {
+        let transfer = Transfer::<2>::new(grid_spacing, Kernel::Quadratic, kind)?;
+        let params = AuguryParams {
+            tau: 1.0,
+            iterations,
+            model,
+        };
+        let mut c = AuguryContact::new(transfer, params)?;
+        let n = self.x.len();
+        let (mut a, mut bdot) = (vec![Vector2::zeros(); n], vec![Matrix2::zeros(); n]);
+        let b = vec![Matrix2::zeros(); n];
+        c.correction(&self.x, &self.mass, &self.normal, v, &b, &mut a, &mut bdot)?;
+        Ok(a)
+    }
 }
 
 /// What [`vibrating_block`] measured.
@@ -258,9 +277,6 @@ pub fn vibrating_block(
     contact: Option<(ContactModel, TransferKind)>,
     setup: &HeadOnSetup,
 ) -> Result<VibrationRun, AuguryError> {
-    const E: f64 = 1e3;
-    const NU: f64 = 0.3;
-    const RHO: f64 = 1.0;
     let cells = check_cells(setup.cells)?;
     let fem = |e: femp_fem::FemError| AuguryError::Fem(e.to_string());
     let mesh = rectangle(
@@ -270,19 +286,17 @@ pub fn vibrating_block(
         cells,
     )
     .map_err(fem)?;
-    let mat = Material::NeoHookean(NeoHookean::from_young_poisson(E, NU).map_err(fem)?);
-    let mut body = ExplicitBody::new("block", &mesh, mat, RHO)?;
+    let (mat, lame) = block_material()?;
+    let mut body = ExplicitBody::new("block", &mesh, mat, BLOCK_RHO)?;
     for (x, v) in body.x.iter().zip(body.v.iter_mut()) {
         *v = Vector2::new(0.2 * (std::f64::consts::PI * x[0]).sin(), 0.0);
     }
-    let mu = E / (2.0 * (1.0 + NU));
-    let lambda = E * NU / ((1.0 + NU) * (1.0 - 2.0 * NU));
     let params = |dt| ExplicitParams {
         dt,
         gravity: Vector2::zeros(),
     };
     let probe = ExplicitSystem::new(vec![body], params(1.0), None);
-    let dt = probe.stable_dt(&[(mu, lambda, RHO)], setup.dt_fraction);
+    let dt = probe.stable_dt(&[lame], setup.dt_fraction);
     let correction = match contact {
         Some((model, kind)) => Some(AuguryContact::new(
             Transfer::<2>::new(2.0 / cells as f64, Kernel::Quadratic, kind)?,
@@ -311,6 +325,20 @@ pub fn vibrating_block(
         energy.push((sys.time, total(&sys) / e0));
     }
     Ok(VibrationRun { energy, steps })
+}
+
+/// Young's modulus (Pa) and density of the head-on and vibrating blocks (ν = 0.3).
+const BLOCK_E: f64 = 1e3;
+const BLOCK_RHO: f64 = 1.0;
+
+/// The blocks' neo-Hookean material and its `(μ, λ, ρ)` for [`ExplicitSystem::stable_dt`].
+fn block_material() -> Result<(Material, (f64, f64, f64)), AuguryError> {
+    const NU: f64 = 0.3;
+    let nh =
+        NeoHookean::from_young_poisson(BLOCK_E, NU).map_err(|e| AuguryError::Fem(e.to_string()))?;
+    let mu = BLOCK_E / (2.0 * (1.0 + NU));
+    let lambda = BLOCK_E * NU / ((1.0 + NU) * (1.0 - 2.0 * NU));
+    Ok((Material::NeoHookean(nh), (mu, lambda, BLOCK_RHO)))
 }
 
 fn check_cells(cells: usize) -> Result<usize, AuguryError> {

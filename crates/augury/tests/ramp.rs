@@ -13,11 +13,8 @@
 use std::ops::Range;
 
 use femp_augury::scenes::{BoundaryParticles, ramp, ramp_with_tau};
-use femp_augury::{
-    AuguryContact, AuguryParams, ContactModel, Transfer, TransferKind, undesirable_part,
-};
+use femp_augury::{ContactModel, TransferKind, undesirable_part};
 use femp_fem::mesh::generate::rectangle;
-use femp_kernels::Kernel;
 use nalgebra::{Matrix2, Vector2};
 
 fn error(h: f64, kind: TransferKind) -> f64 {
@@ -114,19 +111,8 @@ fn change(
     model: ContactModel,
     iterations: usize,
 ) -> Vec<Vector2<f64>> {
-    let transfer = Transfer::<2>::new(0.0625, Kernel::Quadratic, TransferKind::Apic).unwrap();
-    let params = AuguryParams {
-        tau: 1.0,
-        iterations,
-        model,
-    };
-    let mut c = AuguryContact::new(transfer, params).unwrap();
-    let n = p.x.len();
-    let (mut a, mut bdot) = (vec![Vector2::zeros(); n], vec![Matrix2::zeros(); n]);
-    let b = vec![Matrix2::zeros(); n];
-    c.correction(&p.x, &p.mass, &p.normal, v, &b, &mut a, &mut bdot)
-        .unwrap();
-    a
+    p.velocity_change(v, 0.0625, TransferKind::Apic, model, iterations)
+        .unwrap()
 }
 
 fn impulse(p: &BoundaryParticles, dv: &[Vector2<f64>], range: &Range<usize>) -> Vector2<f64> {
