@@ -189,6 +189,12 @@ fn query<const D: usize>(pboxes: &[Aabb<D>], fboxes: &[Aabb<D>], out: &mut Candi
         table.insert(pairs[i].0, (i as u32, j as u32));
         i = j;
     }
+    // Every facet lies in `all`: a particle box outside it has no candidates (most particles
+    // of a body far from, or only partly near, the other one) and needs no look-up.
+    let all = fboxes.iter().skip(1).fold(fboxes[0], |u, b| Aabb {
+        lo: u.lo.inf(&b.lo),
+        hi: u.hi.sup(&b.hi),
+    });
     // Chunks of particles in parallel, each with one growing buffer (no allocation per
     // particle); concatenated in order.
     let chunks: Vec<(Vec<u32>, Vec<u32>)> = pboxes
@@ -197,6 +203,10 @@ fn query<const D: usize>(pboxes: &[Aabb<D>], fboxes: &[Aabb<D>], out: &mut Candi
             let mut counts = Vec::with_capacity(chunk.len());
             let mut facets: Vec<u32> = Vec::new();
             for pb in chunk {
+                if !all.overlaps(pb) {
+                    counts.push(0);
+                    continue;
+                }
                 let before = facets.len();
                 let (lo, hi) = range(pb);
                 if ncells(&lo, &hi) > MAX_CELLS_PER_QUERY {

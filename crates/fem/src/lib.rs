@@ -46,4 +46,4 @@ pub use element::{Element, lumped_masses};
 pub use error::FemError;
 pub use material::{Hyperelastic, Lame, LinearElastic, Material, NeoHookean};
 pub use mesh::Mesh;
-pub use tangent::{Tangent, chain_gradient, chain_hessian};
+pub use tangent::{Tangent, chain_gradient, chain_hessian, chain_hessian_add_upper};

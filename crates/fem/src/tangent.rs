@@ -117,6 +117,45 @@ pub fn chain_gradient<const D: usize>(
     }
 }
 
+/// Like [`chain_hessian`], but **adds** the blocks `i ≤ j` into `out` (the upper block
+/// triangle; `H_ji = H_ijᵀ` is left to the caller) — for summing the Hessians of many
+/// particles that share one stencil (same `n` nodes) before scattering them once.
+pub fn chain_hessian_add_upper<const D: usize>(
+    t: &Tangent<D>,
+    g: &[SVector<f64, D>],
+    scale: f64,
+    out: &mut [SMatrix<f64, D, D>],
+) {
+    let n = g.len();
+    debug_assert!(out.len() >= n * n);
+    let mut tj = [[0.0f64; 3]; 9];
+    for j in 0..n {
+        let gj = &g[j];
+        for ab in 0..D * D {
+            for c in 0..D {
+                let mut s = 0.0;
+                for d in 0..D {
+                    s += t.0[(ab, c * D + d)] * gj[d];
+                }
+                tj[ab][c] = s * scale;
+            }
+        }
+        for i in 0..=j {
+            let gi = &g[i];
+            let o = &mut out[i * n + j];
+            for a in 0..D {
+                for c in 0..D {
+                    let mut s = 0.0;
+                    for b in 0..D {
+                        s += gi[b] * tj[a * D + b][c];
+                    }
+                    o[(a, c)] += s;
+                }
+            }
+        }
+    }
+}
+
 /// Hessian blocks of `scale · ψ(F)` with respect to the `x_i` of `F = Σ_i x_i g_iᵀ`, row-major
 /// `n×n` blocks (`out[i·n + j]` is `∂²/∂x_i∂x_j`, a `D×D` matrix), `n = g.len()`. The tangent
 /// must be symmetric (it is the Hessian of `ψ`), which makes `H_ji = H_ijᵀ`.

@@ -5,7 +5,7 @@ use femp_fem::inversion::{first_det_root, first_root_01};
 use femp_fem::mesh::generate;
 use femp_fem::{
     ElasticBody, Element, Hyperelastic, LinearElastic, Mesh, NeoHookean, chain_gradient,
-    chain_hessian, lumped_masses,
+    chain_hessian, chain_hessian_add_upper, lumped_masses,
 };
 use femp_testkit::{deformation_gradient, fd_gradient, fd_jacobian, vector};
 use nalgebra::{DMatrix, DVector, SMatrix, SVector, Vector2, Vector3};
@@ -329,4 +329,50 @@ fn body_level_inversion_step_and_outputs() {
     assert!(body.det_f(&x).iter().all(|&d| (d - 1.0).abs() < 1e-12));
     assert!(body.von_mises(&x).iter().all(|&s| s.abs() < 1e-9));
     assert!(body.energy(&x[..3]).is_err());
+}
+
+/// Summing several particles' Hessians that share one stencil with `chain_hessian_add_upper`
+/// gives the upper block triangle of the sum of their `chain_hessian` blocks (2D and 3D,
+/// 9 / 27 nodes, different deformation gradients and scales).
+#[test]
+fn accumulated_upper_blocks_equal_the_sum_of_full_hessians() {
+    fn check<const D: usize>(n: usize) {
+        let m = NeoHookean::from_young_poisson(1e4, 0.3).unwrap();
+        let mut acc = vec![SMatrix::<f64, D, D>::zeros(); n * n];
+        let mut sum = vec![SMatrix::<f64, D, D>::zeros(); n * n];
+        let mut one = vec![SMatrix::<f64, D, D>::zeros(); n * n];
+        for p in 0..4 {
+            let s = p as f64;
+            let f = SMatrix::<f64, D, D>::from_fn(|i, j| {
+                (i == j) as u8 as f64 + 0.1 * ((i * 3 + j) as f64 + s).sin()
+            });
+            let g: Vec<SVector<f64, D>> = (0..n)
+                .map(|k| SVector::<f64, D>::from_fn(|c, _| ((k * D + c) as f64 * 0.7 + s).cos()))
+                .collect();
+            let scale = 0.5 + s;
+            chain_hessian_add_upper(&m.tangent(&f), &g, scale, &mut acc);
+            chain_hessian(&m.tangent(&f), &g, scale, &mut one);
+            for (a, b) in sum.iter_mut().zip(&one) {
+                *a += b;
+            }
+        }
+        let big = sum.iter().fold(0.0f64, |a, b| a.max(b.amax()));
+        for i in 0..n {
+            for j in 0..n {
+                let want = if i <= j {
+                    sum[i * n + j]
+                } else {
+                    SMatrix::zeros()
+                };
+                assert!(
+                    (acc[i * n + j] - want).amax() <= 1e-13 * big,
+                    "block ({i}, {j}): {} vs {}",
+                    acc[i * n + j],
+                    want
+                );
+            }
+        }
+    }
+    check::<2>(9);
+    check::<3>(27);
 }

@@ -13,7 +13,7 @@ use femp_contact::ccd::{self, CcdOptions};
 use femp_contact::friction::{self, FrictionTerm};
 use femp_contact::{ContactTerm, TermDerivatives};
 use femp_fem::inversion::first_det_root;
-use femp_fem::{Hyperelastic, Tangent, Triplet, chain_gradient, chain_hessian};
+use femp_fem::{Hyperelastic, Tangent, Triplet, chain_gradient, chain_hessian_add_upper};
 use femp_kernels::transfer;
 use femp_solver::{Objective, StepBound, StepLimit, Triplets};
 use nalgebra::{SMatrix, SVector};
@@ -168,6 +168,8 @@ pub struct StepObjective<'a, const D: usize> {
     u: Vec<SVector<f64, D>>,
     xq: Vec<SVector<f64, D>>,
     fq: Vec<SMatrix<f64, D, D>>,
+    /// `I + Σ_i u_i ∇w_ipᵀ` per particle (`F_p = gu_p F_pⁿ`), for the det F step bound.
+    gu: Vec<SMatrix<f64, D, D>>,
     fem_x: Vec<Vec<SVector<f64, D>>>,
     gh: GridHessian<D>,
     cands: Candidates,
@@ -227,6 +229,7 @@ impl<'a, const D: usize> StepObjective<'a, D> {
             u: Vec::new(),
             xq: Vec::new(),
             fq: Vec::new(),
+            gu: Vec::new(),
             fem_x: fem.iter().map(|b| b.x.clone()).collect(),
             gh: GridHessian::new(),
             cands: Candidates::default(),
@@ -275,12 +278,14 @@ impl<'a, const D: usize> StepObjective<'a, D> {
             let u = &self.u;
             self.xq.resize(m.x.len(), SVector::zeros());
             self.fq.resize(m.x.len(), SMatrix::zeros());
+            self.gu.resize(m.x.len(), SMatrix::zeros());
             self.xq
                 .par_iter_mut()
                 .zip(self.fq.par_iter_mut())
+                .zip(self.gu.par_iter_mut())
                 .enumerate()
                 .with_min_len(512)
-                .for_each(|(p, (xq, fq))| {
+                .for_each(|(p, ((xq, fq), gu))| {
                     let ps = st.particle(p);
                     let mut dx = SVector::<f64, D>::zeros();
                     let mut du = SMatrix::<f64, D, D>::zeros();
@@ -289,7 +294,8 @@ impl<'a, const D: usize> StepObjective<'a, D> {
                         du += u[i] * g.transpose();
                     });
                     *xq = m.x[p] + dx;
-                    *fq = (SMatrix::identity() + du) * m.f[p];
+                    *gu = SMatrix::identity() + du;
+                    *fq = *gu * m.f[p];
                 });
         }
         for (b, off) in self.fem_offset.iter().enumerate() {
@@ -437,10 +443,29 @@ impl<'a, const D: usize> StepObjective<'a, D> {
             let fq = &self.fq;
             let (slots, pair_slot) = (self.gh.slots, &self.gh.pair_slot);
             st.par_scatter_rows(&mut self.gh.rows, slots, |particles, rows| {
-                // Per group (hundreds of particles), not per particle.
+                // Per group (hundreds of particles), not per particle. Particles come sorted by
+                // stencil base within a group, so the blocks of all particles sharing a stencil
+                // (one cell, ~particles-per-cell of them) are summed here and scattered once.
                 let mut gvec = vec![SVector::<f64, D>::zeros(); nn];
                 let mut ids = vec![0usize; nn];
-                let mut blocks = vec![SMatrix::<f64, D, D>::zeros(); nn * nn];
+                let mut cell_ids = vec![usize::MAX; nn];
+                let mut acc = vec![SMatrix::<f64, D, D>::zeros(); nn * nn];
+                let mut flush = |cell_ids: &[usize], acc: &mut [SMatrix<f64, D, D>]| {
+                    for a in 0..nn {
+                        let row = rows.row(cell_ids[a]);
+                        for b in 0..nn {
+                            let block = if a <= b {
+                                acc[a * nn + b]
+                            } else {
+                                acc[b * nn + a].transpose()
+                            };
+                            let slot = &mut row[pair_slot[a * nn + b] as usize];
+                            slot.m += block;
+                            slot.nbr = cell_ids[b] as u32;
+                        }
+                    }
+                    acc.iter_mut().for_each(|b| *b = SMatrix::zeros());
+                };
                 for &p in particles {
                     let p = p as usize;
                     let material = &m.bodies[m.body[p] as usize].material;
@@ -456,15 +481,17 @@ impl<'a, const D: usize> StepObjective<'a, D> {
                         gvec[k] = ft * grad;
                         k += 1;
                     });
-                    chain_hessian(&t, &gvec, w * m.volume[p], &mut blocks);
-                    for a in 0..nn {
-                        let row = rows.row(ids[a]);
-                        for b in 0..nn {
-                            let slot = &mut row[pair_slot[a * nn + b] as usize];
-                            slot.m += blocks[a * nn + b];
-                            slot.nbr = ids[b] as u32;
+                    // The stencil is determined by its first (base) node.
+                    if ids[0] != cell_ids[0] {
+                        if cell_ids[0] != usize::MAX {
+                            flush(&cell_ids, &mut acc);
                         }
+                        cell_ids.copy_from_slice(&ids);
                     }
+                    chain_hessian_add_upper(&t, &gvec, w * m.volume[p], &mut acc);
+                }
+                if cell_ids[0] != usize::MAX {
+                    flush(&cell_ids, &mut acc);
                 }
             });
         }
@@ -814,18 +841,16 @@ impl<const D: usize> Objective for StepObjective<'_, D> {
             dq = vec![SVector::zeros(); m.x.len()];
             let _ = transfer::interpolate(&m.stencils, &pg, &mut dq);
             let st = &m.stencils;
-            let u = &self.u;
+            let gu = &self.gu;
             let alpha = (0..m.x.len())
                 .into_par_iter()
                 .with_min_len(512)
                 .map(|q| {
-                    let mut g0 = SMatrix::<f64, D, D>::identity();
                     let mut g1 = SMatrix::<f64, D, D>::zeros();
                     st.particle(q).for_each(|i, _, grad| {
-                        g0 += u[i] * grad.transpose();
                         g1 += pg[i] * grad.transpose();
                     });
-                    first_det_root(&g0, &g1).unwrap_or(1.0)
+                    first_det_root(&gu[q], &g1).unwrap_or(1.0)
                 })
                 .reduce(|| 1.0, f64::min);
             take(alpha, StepLimit::DetF);

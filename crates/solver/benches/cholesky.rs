@@ -1,13 +1,15 @@
 //! Sparse Cholesky on elasticity-like SPD matrices (2D: 2 DOFs/node, 3D: 3 DOFs/node,
 //! 10⁴–4·10⁵ unknowns): symbolic analysis (AMD vs. METIS nested dissection), numeric
 //! factorisation (1 and 2 threads) and solve, timed separately. Prints the factor fill once.
+//! Also the assembly of the matrix from its triplets: a full build (counting sort and merge)
+//! and a build that reuses the previous one's structure (values scattered into place).
 //!
 //! Run: `cargo bench -p femp-solver --bench cholesky`. The same matrices through CHOLMOD:
 //! `cargo run --release -p femp-solver --example write_matrices -- DIR` then
 //! `fixtures/cholmod/run.sh DIR`.
 
 use criterion::{BenchmarkId, Criterion, criterion_group, criterion_main};
-use femp_solver::{Cholesky, Ordering, Threads};
+use femp_solver::{Cholesky, Ordering, Threads, UpperCsc};
 
 #[path = "common/matrices.rs"]
 mod matrices;
@@ -16,6 +18,18 @@ fn benches(c: &mut Criterion) {
     for case in matrices::all() {
         let mut group = c.benchmark_group(format!("cholesky_{}", case.name));
         group.sample_size(10);
+        let n = case.csc.n();
+        group.bench_function("assemble_full", |b| {
+            b.iter(|| {
+                let mut a = UpperCsc::default();
+                a.assemble(&case.triplets, &case.free, n)
+            })
+        });
+        let mut a = UpperCsc::default();
+        a.assemble(&case.triplets, &case.free, n);
+        group.bench_function("assemble_reused", |b| {
+            b.iter(|| a.assemble(&case.triplets, &case.free, n))
+        });
         for (oname, ord) in [
             ("amd", Ordering::Amd),
             ("nd", Ordering::NestedDissection { block: case.block }),

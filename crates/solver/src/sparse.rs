@@ -8,7 +8,9 @@
 //!
 //! Assembly is a counting sort by column (linear in the number of triplets) followed by a small
 //! sort-and-merge within each column, parallel over columns; no comparison sort over all
-//! triplets.
+//! triplets. It remembers where each triplet landed: when the next build's triplets have the
+//! same rows and columns in the same order (Newton iterations of one step with an unchanged
+//! contact set), it only adds the values into place — bitwise the same result.
 
 use rayon::prelude::*;
 
@@ -90,6 +92,17 @@ pub struct UpperCsc {
     tmp_vals: Vec<f64>,
     prev_col_ptr: Vec<usize>,
     prev_row_idx: Vec<usize>,
+    // The triplet structure of the last full build and where each triplet landed in `values`
+    // (`u32::MAX`: dropped), so a build with the same structure (the Newton iterations of one
+    // step, usually) only scatters values.
+    last_rows: Vec<u32>,
+    last_cols: Vec<u32>,
+    last_free: Vec<u32>,
+    tmp_idx: Vec<u32>,
+    pos: Vec<u32>,
+    /// Builds that reused the previous structure (`scatter`) and full ones.
+    pub(crate) reused: usize,
+    pub(crate) full: usize,
 }
 
 impl UpperCsc {
@@ -135,6 +148,25 @@ impl UpperCsc {
     /// the previous build. Every diagonal entry of a free DOF is present (zero if not given), so
     /// that diagonal shifts always have a slot.
     pub fn assemble(&mut self, t: &Triplets, free: &[u32], n_free: usize) -> bool {
+        if n_free == self.n
+            && !self.pos.is_empty()
+            && t.rows == self.last_rows
+            && t.cols == self.last_cols
+            && free == self.last_free.as_slice()
+        {
+            // Same triplets at the same places: the pattern is the one built last time. The
+            // sums run in the same order as the merge (triplet order), so the values are
+            // bitwise those of a full build.
+            self.values.iter_mut().for_each(|v| *v = 0.0);
+            for (k, &at) in self.pos.iter().enumerate() {
+                if at != u32::MAX {
+                    self.values[at as usize] += t.vals[k];
+                }
+            }
+            self.reused += 1;
+            return false;
+        }
+        self.full += 1;
         std::mem::swap(&mut self.prev_col_ptr, &mut self.col_ptr);
         std::mem::swap(&mut self.prev_row_idx, &mut self.row_idx);
         let n = n_free;
@@ -159,6 +191,8 @@ impl UpperCsc {
         self.tmp_rows.resize(total, 0);
         self.tmp_vals.clear();
         self.tmp_vals.resize(total, 0.0);
+        self.tmp_idx.clear();
+        self.tmp_idx.resize(total, u32::MAX);
         // Diagonal slots first.
         let mut fill: Vec<usize> = self.count[..n].to_vec();
         for c in 0..n {
@@ -171,15 +205,21 @@ impl UpperCsc {
                 let at = fill[fc as usize];
                 self.tmp_rows[at] = fr;
                 self.tmp_vals[at] = t.vals[k];
+                self.tmp_idx[at] = k as u32;
                 fill[fc as usize] += 1;
             }
         }
+        // Where each triplet lands, column-local for now (`u32::MAX`: dropped).
+        self.pos.clear();
+        self.pos.resize(t.vals.len(), u32::MAX);
         // 2. Sort and merge within each column (parallel; columns are independent).
         let count = &self.count;
         let mut merged_len = vec![0usize; n];
         {
             let rows = SendPtr(self.tmp_rows.as_mut_ptr());
             let vals = SendPtr(self.tmp_vals.as_mut_ptr());
+            let idx = SendPtr(self.tmp_idx.as_mut_ptr());
+            let pos = SendPtr(self.pos.as_mut_ptr());
             merged_len
                 .par_iter_mut()
                 .enumerate()
@@ -188,13 +228,18 @@ impl UpperCsc {
                     let (a, b) = (count[c], count[c + 1]);
                     // SAFETY: column ranges [count[c], count[c+1]) are disjoint, so each task has
                     // exclusive access to its own sub-slices.
-                    let (r, v) = unsafe {
+                    let (r, v, ix) = unsafe {
                         (
                             std::slice::from_raw_parts_mut(rows.get().add(a), b - a),
                             std::slice::from_raw_parts_mut(vals.get().add(a), b - a),
+                            std::slice::from_raw_parts_mut(idx.get().add(a), b - a),
                         )
                     };
-                    *len = sort_merge(r, v);
+                    *len = sort_merge(r, v, ix, |k, local| {
+                        // SAFETY: each triplet index appears in exactly one column, so no two
+                        // tasks write the same entry of `pos`.
+                        unsafe { *pos.get().add(k as usize) = local as u32 };
+                    });
                 });
         }
         // 3. Compact into the output arrays.
@@ -213,29 +258,54 @@ impl UpperCsc {
             self.values.extend_from_slice(&self.tmp_vals[a..a + m]);
             self.col_ptr.push(self.row_idx.len());
         }
+        for k in 0..t.vals.len() {
+            if self.pos[k] != u32::MAX {
+                let fc = free[t.cols[k] as usize] as usize;
+                self.pos[k] += self.col_ptr[fc] as u32;
+            }
+        }
+        if self.values.len() >= u32::MAX as usize {
+            self.pos.clear(); // too large to address with u32: always build in full
+        }
+        self.last_rows.clone_from(&t.rows);
+        self.last_cols.clone_from(&t.cols);
+        self.last_free.clear();
+        self.last_free.extend_from_slice(free);
         self.col_ptr != self.prev_col_ptr || self.row_idx != self.prev_row_idx
     }
 }
 
-/// Sort `(rows, vals)` by row and merge duplicates (summing values); returns the merged length.
-fn sort_merge(rows: &mut [u32], vals: &mut [f64]) -> usize {
+/// Sort `(rows, vals, idx)` by row (stably) and merge duplicates (summing values in their
+/// original order); `placed(idx, local)` is told the merged position of every entry whose
+/// `idx` is not `u32::MAX`. Returns the merged length.
+fn sort_merge(
+    rows: &mut [u32],
+    vals: &mut [f64],
+    idx: &mut [u32],
+    mut placed: impl FnMut(u32, usize),
+) -> usize {
     let n = rows.len();
     if n == 0 {
         return 0;
     }
     // Insertion sort: columns are short and often nearly sorted.
     for i in 1..n {
-        let (r, v) = (rows[i], vals[i]);
+        let (r, v, k) = (rows[i], vals[i], idx[i]);
         let mut j = i;
         while j > 0 && rows[j - 1] > r {
             rows[j] = rows[j - 1];
             vals[j] = vals[j - 1];
+            idx[j] = idx[j - 1];
             j -= 1;
         }
         rows[j] = r;
         vals[j] = v;
+        idx[j] = k;
     }
     let mut w = 0;
+    if idx[0] != u32::MAX {
+        placed(idx[0], 0);
+    }
     for i in 1..n {
         if rows[i] == rows[w] {
             vals[w] += vals[i];
@@ -243,6 +313,9 @@ fn sort_merge(rows: &mut [u32], vals: &mut [f64]) -> usize {
             w += 1;
             rows[w] = rows[i];
             vals[w] = vals[i];
+        }
+        if idx[i] != u32::MAX {
+            placed(idx[i], w);
         }
     }
     w + 1
@@ -297,5 +370,72 @@ mod tests {
         assert!(a.assemble(&t, &free, 2));
         assert_eq!(a.row_idx(), &[0, 1]);
         assert_eq!(a.values(), &[1.0, 0.0]);
+    }
+
+    /// A build with the previous build's triplet structure only scatters values, and gives
+    /// bitwise the values of a fresh full build (random structure with duplicates, fixed DOFs
+    /// and lower-triangle entries); a changed structure builds in full again.
+    #[test]
+    fn reused_structure_gives_the_same_values_as_a_full_build() {
+        let mut seed = 12345u64;
+        let mut rnd = move || {
+            seed ^= seed << 13;
+            seed ^= seed >> 7;
+            seed ^= seed << 17;
+            seed
+        };
+        let n = 40;
+        let free: Vec<u32> = (0..n as u32)
+            .scan(0u32, |next, d| {
+                Some(if d % 7 == 3 {
+                    u32::MAX
+                } else {
+                    *next += 1;
+                    *next - 1
+                })
+            })
+            .collect();
+        let nf = free.iter().filter(|&&f| f != u32::MAX).count();
+        let mut t = Triplets::default();
+        for _ in 0..600 {
+            // Banded (|r − c| ≤ 5), so the coupling of DOFs 0 and n − 1 below is new.
+            let r = (rnd() % n) as usize;
+            let c = (r + (rnd() % 6) as usize).min(n as usize - 1);
+            let v = (rnd() % 1000) as f64 / 7.0 - 60.0;
+            t.push(r, c, v);
+            t.push(c, r, v);
+        }
+        let mut a = UpperCsc::default();
+        assert!(a.assemble(&t, &free, nf));
+        for (k, v) in t.vals.iter_mut().enumerate() {
+            *v = (*v * 1.37 + k as f64 * 0.01).sin() * 1e3;
+        }
+        assert!(!a.assemble(&t, &free, nf));
+        assert_eq!((a.full, a.reused), (1, 1));
+        let mut fresh = UpperCsc::default();
+        fresh.assemble(&t, &free, nf);
+        assert_eq!(a.col_ptr(), fresh.col_ptr());
+        assert_eq!(a.row_idx(), fresh.row_idx());
+        let bits = |x: &[f64]| x.iter().map(|v| (v + 0.0).to_bits()).collect::<Vec<_>>();
+        assert_eq!(bits(a.values()), bits(fresh.values()));
+        // More entries: a full build each time, and the pattern reported as changed exactly
+        // when it differs from the previous one (a duplicate of an existing entry: no; a new
+        // coupling between the first and last free DOF: yes).
+        let (r0, c0) = (t.rows[0] as usize, t.cols[0] as usize);
+        for (r, c, new_entry) in [(r0, c0, false), (0, n as usize - 1, true)] {
+            let before = (a.col_ptr().to_vec(), a.row_idx().to_vec());
+            t.push(r, c, 1.0);
+            t.push(c, r, 1.0);
+            let changed = a.assemble(&t, &free, nf);
+            let mut fresh = UpperCsc::default();
+            fresh.assemble(&t, &free, nf);
+            assert_eq!(changed, new_entry);
+            assert_eq!(
+                changed,
+                (before.0, before.1) != (fresh.col_ptr().to_vec(), fresh.row_idx().to_vec())
+            );
+            assert_eq!(bits(a.values()), bits(fresh.values()));
+        }
+        assert_eq!((a.full, a.reused), (3, 1));
     }
 }

@@ -13,6 +13,10 @@ pub struct Case {
     pub name: String,
     pub csc: UpperCsc,
     pub block: usize,
+    /// The triplets it was assembled from (element blocks, both triangles, plus the mass
+    /// diagonal) and the free-DOF map (all free).
+    pub triplets: Triplets,
+    pub free: Vec<u32>,
 }
 
 fn finish(name: String, trip: &[Triplet], n: usize, mass: f64, block: usize) -> Case {
@@ -27,7 +31,13 @@ fn finish(name: String, trip: &[Triplet], n: usize, mass: f64, block: usize) -> 
     let free: Vec<u32> = (0..n as u32).collect();
     let mut csc = UpperCsc::default();
     csc.assemble(&t, &free, n);
-    Case { name, csc, block }
+    Case {
+        name,
+        csc,
+        block,
+        triplets: t,
+        free,
+    }
 }
 
 /// 2D: an `m × m` node grid (2 m² unknowns).
