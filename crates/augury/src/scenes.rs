@@ -56,16 +56,20 @@ pub struct HeadOnSetup {
     pub tau_over_dt: f64,
     /// Simulated time (s).
     pub duration: f64,
+    /// Speed of each block towards the other (m/s; the blocks' dilatational wave speed is
+    /// 36.7 m/s).
+    pub speed: f64,
 }
 
 impl Default for HeadOnSetup {
-    /// 8 × 8 elements per block, Δt = half the stable step, τ = Δt, 0.8 s.
+    /// 8 × 8 elements per block, Δt = half the stable step, τ = Δt, 0.8 s, 1 m/s each.
     fn default() -> Self {
         Self {
             cells: 8,
             dt_fraction: 0.5,
             tau_over_dt: 1.0,
             duration: 0.8,
+            speed: 1.0,
         }
     }
 }
@@ -100,7 +104,17 @@ pub fn head_on_blocks_with(
         b.set_rigid_velocity(Vector2::new(v, 0.0), Vector3::zeros());
         Ok(b)
     };
-    let bodies = vec![block("a", -1.5, 0.0, 1.0)?, block("b", 0.5, offset, -1.0)?];
+    if !(setup.speed.is_finite() && setup.speed >= 0.0) {
+        return Err(AuguryError::BadParameter {
+            name: "block speed",
+            value: setup.speed,
+            requirement: "must be finite and non-negative",
+        });
+    }
+    let bodies = vec![
+        block("a", -1.5, 0.0, setup.speed)?,
+        block("b", 0.5, offset, -setup.speed)?,
+    ];
     let params = |dt| ExplicitParams {
         dt,
         gravity: Vector2::zeros(),

@@ -153,6 +153,7 @@ fn blocks_refinement_2d(ctx: &Ctx, out: &mut Outcome) -> Result<()> {
             dt_fraction: tau,
             tau_over_dt: 1.0,
             duration: 1.0,
+            ..HeadOnSetup::default()
         };
         let cell = 2.0 / cells as f64;
         let run =
@@ -220,6 +221,29 @@ fn blocks_refinement_2d(ctx: &Ctx, out: &mut Outcome) -> Result<()> {
             ));
         }
     }
+    // At the 3D scene's impact speed (≈ 16 % of c_p each; the rows above: 2.7 %).
+    let fast = HeadOnSetup {
+        cells: 32,
+        duration: 0.5 / 6.0 + 1.0,
+        speed: 6.0,
+        ..HeadOnSetup::default()
+    };
+    let run =
+        |model| head_on_blocks_with(BlocksContact::Augury(model, TransferKind::Apic), 0.0, &fast);
+    let (sticky, separation) = (run(ContactModel::Sticky)?, run(ContactModel::Separation)?);
+    out.checks.push(Check::holds(
+        "2D head-on, 32 × 32, 6 m/s each (16 % of c_p, the 3D scene's): N = 0 sticks, N = 1 rebounds",
+        format!(
+            "N = 0: {:.3} s within a cell of the 1 s after contact; N = 1: {:+.2} m/s (approach −12) after {:.3} s",
+            sticky.contact_time, separation.separation_speed, separation.contact_time
+        ),
+        "N = 0 together > 0.95 s; N = 1 > +6 m/s within 0.2 s (as at 1 m/s: impact speed does not make blocks separate)",
+        "—",
+        sticky.contact_time > 0.95
+            && sticky.final_gap < 2.0 / 32.0
+            && separation.separation_speed > 6.0
+            && separation.contact_time < 0.2,
+    ));
     // The correction's own damping of a lone block's non-affine vibration (paper §3.2: "damped
     // slightly", less under refinement).
     let mut kept = Vec::new();
@@ -229,6 +253,7 @@ fn blocks_refinement_2d(ctx: &Ctx, out: &mut Outcome) -> Result<()> {
             dt_fraction: 0.05,
             tau_over_dt: 1.0,
             duration: 0.5,
+            ..HeadOnSetup::default()
         };
         let mut row = Vec::new();
         for kind in [TransferKind::Apic, TransferKind::Pic] {
