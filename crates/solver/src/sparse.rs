@@ -191,6 +191,8 @@ impl UpperCsc {
         self.tmp_rows.resize(total, 0);
         self.tmp_vals.clear();
         self.tmp_vals.resize(total, 0.0);
+        // Positions are tracked in u32: a build too large for that is always done in full.
+        let track = total < u32::MAX as usize && t.vals.len() < u32::MAX as usize;
         self.tmp_idx.clear();
         self.tmp_idx.resize(total, u32::MAX);
         // Diagonal slots first.
@@ -205,13 +207,17 @@ impl UpperCsc {
                 let at = fill[fc as usize];
                 self.tmp_rows[at] = fr;
                 self.tmp_vals[at] = t.vals[k];
-                self.tmp_idx[at] = k as u32;
+                if track {
+                    self.tmp_idx[at] = k as u32;
+                }
                 fill[fc as usize] += 1;
             }
         }
         // Where each triplet lands, column-local for now (`u32::MAX`: dropped).
         self.pos.clear();
-        self.pos.resize(t.vals.len(), u32::MAX);
+        if track {
+            self.pos.resize(t.vals.len(), u32::MAX);
+        }
         // 2. Sort and merge within each column (parallel; columns are independent).
         let count = &self.count;
         let mut merged_len = vec![0usize; n];
@@ -258,14 +264,11 @@ impl UpperCsc {
             self.values.extend_from_slice(&self.tmp_vals[a..a + m]);
             self.col_ptr.push(self.row_idx.len());
         }
-        for k in 0..t.vals.len() {
+        for k in 0..self.pos.len() {
             if self.pos[k] != u32::MAX {
                 let fc = free[t.cols[k] as usize] as usize;
                 self.pos[k] += self.col_ptr[fc] as u32;
             }
-        }
-        if self.values.len() >= u32::MAX as usize {
-            self.pos.clear(); // too large to address with u32: always build in full
         }
         self.last_rows.clone_from(&t.rows);
         self.last_cols.clone_from(&t.cols);
