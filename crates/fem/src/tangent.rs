@@ -117,6 +117,43 @@ pub fn chain_gradient<const D: usize>(
     }
 }
 
+/// The blocks `H_ij`, `i ≤ j`, of `scale · ψ(F)` with respect to the `x_i` of
+/// `F = Σ_i x_i g_iᵀ`, handed to `f(i, j, H_ij)` (the tangent is symmetric, so `H_ji = H_ijᵀ`).
+#[inline]
+fn chain_hessian_upper_blocks<const D: usize>(
+    t: &Tangent<D>,
+    g: &[SVector<f64, D>],
+    scale: f64,
+    mut f: impl FnMut(usize, usize, SMatrix<f64, D, D>),
+) {
+    // T_j[(a·D + b), c] = Σ_d A[(a·D + b, c·D + d)] g_j[d], then H_ij[a][c] = Σ_b g_i[b] T_j.
+    let mut tj = [[0.0f64; 3]; 9];
+    for (j, gj) in g.iter().enumerate() {
+        for ab in 0..D * D {
+            for c in 0..D {
+                let mut s = 0.0;
+                for d in 0..D {
+                    s += t.0[(ab, c * D + d)] * gj[d];
+                }
+                tj[ab][c] = s * scale;
+            }
+        }
+        for (i, gi) in g.iter().enumerate().take(j + 1) {
+            let mut h = SMatrix::<f64, D, D>::zeros();
+            for a in 0..D {
+                for c in 0..D {
+                    let mut s = 0.0;
+                    for b in 0..D {
+                        s += gi[b] * tj[a * D + b][c];
+                    }
+                    h[(a, c)] = s;
+                }
+            }
+            f(i, j, h);
+        }
+    }
+}
+
 /// Like [`chain_hessian`], but **adds** the blocks `i ≤ j` into `out` (the upper block
 /// triangle; `H_ji = H_ijᵀ` is left to the caller) — for summing the Hessians of many
 /// particles that share one stencil (same `n` nodes) before scattering them once.
@@ -128,32 +165,7 @@ pub fn chain_hessian_add_upper<const D: usize>(
 ) {
     let n = g.len();
     debug_assert!(out.len() >= n * n);
-    let mut tj = [[0.0f64; 3]; 9];
-    for j in 0..n {
-        let gj = &g[j];
-        for ab in 0..D * D {
-            for c in 0..D {
-                let mut s = 0.0;
-                for d in 0..D {
-                    s += t.0[(ab, c * D + d)] * gj[d];
-                }
-                tj[ab][c] = s * scale;
-            }
-        }
-        for i in 0..=j {
-            let gi = &g[i];
-            let o = &mut out[i * n + j];
-            for a in 0..D {
-                for c in 0..D {
-                    let mut s = 0.0;
-                    for b in 0..D {
-                        s += gi[b] * tj[a * D + b][c];
-                    }
-                    o[(a, c)] += s;
-                }
-            }
-        }
-    }
+    chain_hessian_upper_blocks(t, g, scale, |i, j, h| out[i * n + j] += h);
 }
 
 /// Hessian blocks of `scale · ψ(F)` with respect to the `x_i` of `F = Σ_i x_i g_iᵀ`, row-major
@@ -167,34 +179,8 @@ pub fn chain_hessian<const D: usize>(
 ) {
     let n = g.len();
     debug_assert!(out.len() >= n * n);
-    // T_j[(a·D + b), c] = Σ_d A[(a·D + b, c·D + d)] g_j[d], then H_ij[a][c] = Σ_b g_i[b] T_j.
-    let mut tj = [[0.0f64; 3]; 9];
-    for j in 0..n {
-        let gj = &g[j];
-        for ab in 0..D * D {
-            for c in 0..D {
-                let mut s = 0.0;
-                for d in 0..D {
-                    s += t.0[(ab, c * D + d)] * gj[d];
-                }
-                tj[ab][c] = s * scale;
-            }
-        }
-        // The tangent is symmetric (a Hessian of ψ), so H_ij = H_jiᵀ: compute i ≤ j only.
-        for i in 0..=j {
-            let gi = &g[i];
-            let mut h = SMatrix::<f64, D, D>::zeros();
-            for a in 0..D {
-                for c in 0..D {
-                    let mut s = 0.0;
-                    for b in 0..D {
-                        s += gi[b] * tj[a * D + b][c];
-                    }
-                    h[(a, c)] = s;
-                }
-            }
-            out[i * n + j] = h;
-            out[j * n + i] = h.transpose();
-        }
-    }
+    chain_hessian_upper_blocks(t, g, scale, |i, j, h| {
+        out[i * n + j] = h;
+        out[j * n + i] = h.transpose();
+    });
 }
