@@ -94,6 +94,16 @@ pub fn first_root_01(c: &[f64; 4]) -> Option<f64> {
     if !(c[0] > 0.0) {
         return Some(0.0);
     }
+    // Treat a determinant that drops below 1e-12 of its start as zero: a near-touching double
+    // root is caught even if the computed critical point is off by round-off.
+    let floor = 1e-12 * c[0];
+    // Quick exit (most particles and elements of a Newton step): on [0, 1] the cubic is at
+    // least c₀ − |c₁| − |c₂| − |c₃|; with that above the floor by more than the evaluations'
+    // round-off, every evaluation below would stay above it too — no root.
+    let spread = c[1].abs() + c[2].abs() + c[3].abs();
+    if c[0] - spread > floor + 1e-13 * (c[0] + spread) {
+        return None;
+    }
     // Breakpoints: 0, critical points in (0, 1), 1.
     let (crit, nc) = quadratic_roots_01(3.0 * c[3], 2.0 * c[2], c[1]);
     let mut pts = [0.0; 4];
@@ -104,9 +114,6 @@ pub fn first_root_01(c: &[f64; 4]) -> Option<f64> {
     }
     pts[np] = 1.0;
     np += 1;
-    // Treat a determinant that drops below 1e-12 of its start as zero: a near-touching double
-    // root is caught even if the computed critical point is off by round-off.
-    let floor = 1e-12 * c[0];
     for w in pts[..np].windows(2) {
         let (a, b) = (w[0], w[1]);
         if eval(c, b) <= floor {

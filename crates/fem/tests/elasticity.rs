@@ -205,6 +205,32 @@ proptest! {
     }
 }
 
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(512))]
+
+    /// Cubics whose coefficients sum close to c₀ in magnitude — around the quick "no root"
+    /// exit (`c₀ > |c₁| + |c₂| + |c₃|`): a `None` is only returned where the cubic stays above
+    /// zero on [0, 1] (sampled), and a root only where it reaches (nearly) zero.
+    #[test]
+    fn first_root_near_the_quick_exit_is_right(
+        c0 in 1e-6f64..1e6,
+        w in proptest::collection::vec(-1.0f64..1.0, 3),
+        margin in -1e-3f64..1e-3,
+    ) {
+        let l1: f64 = w.iter().map(|v| v.abs()).sum();
+        prop_assume!(l1 > 1e-3);
+        // |c₁| + |c₂| + |c₃| = c₀ (1 + margin).
+        let scale = c0 * (1.0 + margin) / l1;
+        let c = [c0, w[0] * scale, w[1] * scale, w[2] * scale];
+        let p = |t: f64| ((c[3] * t + c[2]) * t + c[1]) * t + c[0];
+        let min = (0..=4000).map(|k| p(k as f64 / 4000.0)).fold(f64::INFINITY, f64::min);
+        match first_root_01(&c) {
+            None => prop_assert!(min > 0.0, "None, but p drops to {min:e} (c = {c:?})"),
+            Some(t) => prop_assert!(p(t) <= 1e-9 * c0, "root {t} with p = {:e} (c = {c:?})", p(t)),
+        }
+    }
+}
+
 /// Patch test: under an affine deformation x = A X + b every element has F = A, the stress is
 /// P(A) exactly, and the internal forces at interior vertices vanish.
 /// Mesh-level exact Hessian: the finite difference of the gradient, laid out like the

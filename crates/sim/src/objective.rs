@@ -132,18 +132,51 @@ impl<const D: usize> GridHessian<D> {
         );
     }
 
-    fn emit(&self, h: &mut Triplets) {
-        h.reserve(self.rows.iter().filter(|b| b.nbr != u32::MAX).count() * D * D);
-        for (k, b) in self.rows.iter().enumerate() {
-            if b.nbr != u32::MAX {
-                let i = k / self.slots;
-                for r in 0..D {
-                    for c in 0..D {
-                        h.push(i * D + r, b.nbr as usize * D + c, b.m[(r, c)]);
+    /// Append the stored blocks to `h` as triplets, node by node and slot by slot (the order a
+    /// sequential loop gives), nodes in parallel.
+    fn emit(&self, h: &mut Triplets, counts: &mut Vec<usize>) {
+        const NODES_PER_TASK: usize = 64;
+        let slots = self.slots;
+        let n_nodes = self.rows.len().checked_div(slots).unwrap_or(0);
+        // Entries per task of consecutive nodes.
+        counts.clear();
+        counts.extend(
+            self.rows
+                .chunks(slots.max(1) * NODES_PER_TASK)
+                .map(|c| c.iter().filter(|b| b.nbr != u32::MAX).count() * D * D),
+        );
+        let total: usize = counts.iter().sum();
+        h.append_with(total, |rows, cols, vals| {
+            let mut parts = Vec::with_capacity(counts.len());
+            let (mut r, mut c, mut v) = (rows, cols, vals);
+            for (task, &len) in counts.iter().enumerate() {
+                let (r0, r1) = r.split_at_mut(len);
+                let (c0, c1) = c.split_at_mut(len);
+                let (v0, v1) = v.split_at_mut(len);
+                parts.push((task, r0, c0, v0));
+                (r, c, v) = (r1, c1, v1);
+            }
+            parts.into_par_iter().for_each(|(task, r, c, v)| {
+                let first = task * NODES_PER_TASK;
+                let last = (first + NODES_PER_TASK).min(n_nodes);
+                let mut k = 0;
+                for i in first..last {
+                    for b in &self.rows[i * slots..(i + 1) * slots] {
+                        if b.nbr == u32::MAX {
+                            continue;
+                        }
+                        for rr in 0..D {
+                            for cc in 0..D {
+                                r[k] = (i * D + rr) as u32;
+                                c[k] = (b.nbr as usize * D + cc) as u32;
+                                v[k] = b.m[(rr, cc)];
+                                k += 1;
+                            }
+                        }
                     }
                 }
-            }
-        }
+            });
+        });
     }
 }
 
@@ -187,6 +220,11 @@ pub struct StepObjective<'a, const D: usize> {
     /// Whether the cached barrier derivatives carry the exact Hessian (else the pair's
     /// projected or Gauss–Newton one).
     contact_cache_exact: bool,
+    // Contact terms and smallest distance at the cached derivatives' state, and a scratch
+    // gradient for the Hessian computing them first.
+    contact_cache_summary: (usize, f64),
+    contact_scratch: Vec<f64>,
+    emit_counts: Vec<usize>,
     /// The gradient computes the barrier's exact Hessian for the cache (the solver asks for
     /// [`Objective::exact_hessian`] first: `HessianStrategy::ExactWhenDefinite`).
     pub(crate) prefer_exact: bool,
@@ -243,6 +281,9 @@ impl<'a, const D: usize> StepObjective<'a, D> {
                 None,
             ),
             contact_cache_exact: false,
+            contact_cache_summary: (0, f64::INFINITY),
+            contact_scratch: Vec::new(),
+            emit_counts: Vec::new(),
             prefer_exact: false,
             timing: ObjectiveTiming::default(),
             last_contacts: (0, f64::INFINITY),
@@ -411,6 +452,7 @@ impl<'a, const D: usize> StepObjective<'a, D> {
         }
         self.contact_cache = (cache, Some(self.generation));
         self.contact_cache_exact = exact;
+        self.contact_cache_summary = (count, dmin);
         (count, dmin)
     }
 
@@ -517,10 +559,14 @@ impl<'a, const D: usize> StepObjective<'a, D> {
         }
         self.timing.fem_s += lap(&mut clock);
         if self.contact_cache.1 != Some(self.generation) || self.contact_cache_exact != exact {
-            // No gradient at this x and friction operator yet, or it kept the other kind of
-            // barrier Hessian: compute the derivatives.
-            let mut scratch = vec![0.0; self.n_dofs];
+            // No gradient at this x and friction operator yet (the Newton solver asks for the
+            // Hessian first), or it kept the other kind of barrier Hessian: compute the
+            // derivatives (the gradient at this x then reuses them).
+            let mut scratch = std::mem::take(&mut self.contact_scratch);
+            scratch.clear();
+            scratch.resize(self.n_dofs, 0.0);
             self.contact_gradient(&mut scratch, exact);
+            self.contact_scratch = scratch;
         }
         let cache = std::mem::take(&mut self.contact_cache.0);
         for (k, [bar, fric]) in cache.iter().enumerate() {
@@ -530,7 +576,9 @@ impl<'a, const D: usize> StepObjective<'a, D> {
         self.contact_cache.0 = cache;
         self.timing.contact_s += lap(&mut clock);
         if self.mpm.is_some() {
-            self.gh.emit(h);
+            let mut counts = std::mem::take(&mut self.emit_counts);
+            self.gh.emit(h, &mut counts);
+            self.emit_counts = counts;
         }
         self.timing.emit_s += lap(&mut clock);
     }
@@ -808,7 +856,19 @@ impl<const D: usize> Objective for StepObjective<'_, D> {
             }
         }
         self.timing.fem_s += lap(&mut clock);
-        let (count, dmin) = self.contact_gradient(g, self.prefer_exact);
+        let (count, dmin) = if self.contact_cache.1 == Some(self.generation) {
+            // The Hessian at this x computed the contact derivatives (either kind: their
+            // gradients are the same): scatter them in the same order.
+            let cache = std::mem::take(&mut self.contact_cache.0);
+            for (k, [bar, fric]) in cache.iter().enumerate() {
+                self.scatter(k, bar, Some(g), None);
+                self.scatter(k, fric, Some(g), None);
+            }
+            self.contact_cache.0 = cache;
+            self.contact_cache_summary
+        } else {
+            self.contact_gradient(g, self.prefer_exact)
+        };
         self.timing.contact_s += lap(&mut clock);
         self.last_contacts = (count, dmin);
     }
@@ -824,38 +884,75 @@ impl<const D: usize> Objective for StepObjective<'_, D> {
 
     fn max_step(&mut self, x: &[f64], p: &[f64]) -> StepBound {
         self.unpack(x);
-        let mut clock = Instant::now();
+        let clock = Instant::now();
+        // Particle displacements along p (for CCD) and grid increments (for det F).
+        let mut dq: Vec<SVector<f64, D>> = Vec::new();
+        let mut pg: Vec<SVector<f64, D>> = Vec::new();
+        if let Some(m) = self.mpm {
+            pg = (0..self.n_grid).map(|i| Self::v(p, i)).collect();
+            dq = vec![SVector::zeros(); m.x.len()];
+            let _ = transfer::interpolate(&m.stencils, &pg, &mut dq);
+        }
+        let setup_s = clock.elapsed().as_secs_f64();
+        // The particles' det F bound (parallel) alongside the elements' and CCD (sequential).
+        let this = &*self;
+        let ((mpm_alpha, mpm_s), (fem_alpha, fem_s, ccd_alpha, ccd_s)) = rayon::join(
+            || {
+                let t = Instant::now();
+                (this.particle_det_bound(&pg), t.elapsed().as_secs_f64())
+            },
+            || {
+                let t = Instant::now();
+                let fem = this.element_det_bound(p);
+                let fem_s = t.elapsed().as_secs_f64();
+                let ccd = this.ccd_bound(p, &dq);
+                (fem, fem_s, ccd, t.elapsed().as_secs_f64() - fem_s)
+            },
+        );
+        self.timing.inversion_s += setup_s + mpm_s + fem_s;
+        self.timing.ccd_s += ccd_s;
         let mut best = StepBound::UNLIMITED;
-        let mut take = |alpha: f64, limit: StepLimit| {
+        for (alpha, limit) in [
+            (mpm_alpha, StepLimit::DetF),
+            (fem_alpha, StepLimit::DetF),
+            (ccd_alpha, StepLimit::Ccd),
+        ] {
             if alpha < best.alpha {
                 best = StepBound {
                     alpha: alpha.max(0.0),
                     limit: Some(limit),
                 };
             }
-        };
-        // Particle displacements along p, and det F of particles.
-        let mut dq: Vec<SVector<f64, D>> = Vec::new();
-        if let Some(m) = self.mpm {
-            let pg: Vec<SVector<f64, D>> = (0..self.n_grid).map(|i| Self::v(p, i)).collect();
-            dq = vec![SVector::zeros(); m.x.len()];
-            let _ = transfer::interpolate(&m.stencils, &pg, &mut dq);
-            let st = &m.stencils;
-            let gu = &self.gu;
-            let alpha = (0..m.x.len())
-                .into_par_iter()
-                .with_min_len(512)
-                .map(|q| {
-                    let mut g1 = SMatrix::<f64, D, D>::zeros();
-                    st.particle(q).for_each(|i, _, grad| {
-                        g1 += pg[i] * grad.transpose();
-                    });
-                    first_det_root(&gu[q], &g1).unwrap_or(1.0)
-                })
-                .reduce(|| 1.0, f64::min);
-            take(alpha, StepLimit::DetF);
         }
-        // FEM det F.
+        best
+    }
+}
+
+impl<const D: usize> StepObjective<'_, D> {
+    /// The largest step fraction (≤ 1) along grid increments `pg` before a particle's det F
+    /// reaches zero.
+    fn particle_det_bound(&self, pg: &[SVector<f64, D>]) -> f64 {
+        let Some(m) = self.mpm else {
+            return 1.0;
+        };
+        let st = &m.stencils;
+        let gu = &self.gu;
+        (0..m.x.len())
+            .into_par_iter()
+            .with_min_len(512)
+            .map(|q| {
+                let mut g1 = SMatrix::<f64, D, D>::zeros();
+                st.particle(q).for_each(|i, _, grad| {
+                    g1 += pg[i] * grad.transpose();
+                });
+                first_det_root(&gu[q], &g1).unwrap_or(1.0)
+            })
+            .reduce(|| 1.0, f64::min)
+    }
+
+    /// The same for the FEM elements (free bodies) along `p`.
+    fn element_det_bound(&self, p: &[f64]) -> f64 {
+        let mut best = 1.0f64;
         for (b, body) in self.fem.iter().enumerate() {
             if body.fully_prescribed {
                 continue;
@@ -865,10 +962,17 @@ impl<const D: usize> Objective for StepObjective<'_, D> {
                 .map(|v| SVector::from_column_slice(&p[off + v * D..off + v * D + D]))
                 .collect();
             if let Ok(a) = body.elastic.max_inversion_free_step(&self.fem_x[b], &pb) {
-                take(a, StepLimit::DetF);
+                best = best.min(a);
             }
         }
-        self.timing.inversion_s += lap(&mut clock);
+        best
+    }
+
+    /// The largest step fraction (≤ 1) before a point of any pair meets a facet (CCD), the
+    /// particles moving by `dq`.
+    fn ccd_bound(&self, p: &[f64], dq: &[SVector<f64, D>]) -> f64 {
+        let mut best = 1.0f64;
+        let mut take = |alpha: f64, _limit: StepLimit| best = best.min(alpha);
         // CCD of every pair along the full step.
         for pair in self.pairs {
             let x0 = self.points(pair);
@@ -905,7 +1009,6 @@ impl<const D: usize> Objective for StepObjective<'_, D> {
             );
             take(alpha, StepLimit::Ccd);
         }
-        self.timing.ccd_s += lap(&mut clock);
         best
     }
 }

@@ -55,7 +55,8 @@ pub trait Objective {
     fn begin_iteration(&mut self, _x: &[f64]) {}
     /// `E(x)`; `+∞` or NaN for infeasible points (they make the line search backtrack).
     fn energy(&mut self, x: &[f64]) -> f64;
-    /// `∇E(x)` into `g` (overwrite).
+    /// `∇E(x)` into `g` (overwrite). In a Newton iteration it is called *after* the Hessian
+    /// at the same `x` (the solver factorises the Hessian on another thread meanwhile).
     fn gradient(&mut self, x: &[f64], g: &mut [f64]);
     /// A positive semi-definite approximation of `∇²E(x)` as **full symmetric** triplets
     /// (both triangles), appended to `h` (cleared by the caller).
@@ -165,7 +166,8 @@ pub struct SolveStats {
     pub roundoff_stops: usize,
     /// Symbolic analyses (sparsity pattern changes).
     pub symbolic_analyses: usize,
-    /// Seconds assembling gradient and Hessian (objective calls and CSC build).
+    /// Seconds assembling gradient and Hessian (objective calls and CSC build). Work, not wall
+    /// time: the gradient is computed while another thread builds the CSC and factorises.
     pub assembly_s: f64,
     /// Seconds in ordering and symbolic factorisation.
     pub symbolic_s: f64,
@@ -180,9 +182,8 @@ pub struct SolveStats {
 /// A projected-Newton solver. Keep it across solves: the symbolic factorisation and all
 /// buffers are reused while the Hessian's pattern is unchanged.
 pub struct Newton {
-    chol: Cholesky,
+    lin: Linear,
     triplets: Triplets,
-    csc: UpperCsc,
     ordering: Ordering,
     threads: Threads,
     free: Vec<u32>,
@@ -191,6 +192,20 @@ pub struct Newton {
     p: Vec<f64>,
     rhs: Vec<f64>,
     trial: Vec<f64>,
+}
+
+/// The Hessian's sparse matrix and its factorisation: what a Newton iteration can hand to
+/// another thread while it computes the gradient.
+struct Linear {
+    chol: Cholesky,
+    csc: UpperCsc,
+    // The pattern the factorisation was analysed for, and whether that analysis was made in
+    // the current solve (whose unknowns keep their meaning, so patterns may be merged).
+    analysed_col_ptr: Vec<usize>,
+    analysed_row_idx: Vec<usize>,
+    analysed_in_solve: bool,
+    /// Seconds building the CSC matrix (counted as assembly).
+    csc_s: f64,
 }
 
 impl Default for Newton {
@@ -203,9 +218,15 @@ impl Newton {
     /// A solver with empty buffers.
     pub fn new() -> Self {
         Self {
-            chol: Cholesky::new(Ordering::Auto, Threads::Auto),
+            lin: Linear {
+                chol: Cholesky::new(Ordering::Auto, Threads::Auto),
+                csc: UpperCsc::default(),
+                analysed_col_ptr: Vec::new(),
+                analysed_row_idx: Vec::new(),
+                analysed_in_solve: false,
+                csc_s: 0.0,
+            },
             triplets: Triplets::default(),
-            csc: UpperCsc::default(),
             ordering: Ordering::Auto,
             threads: Threads::Auto,
             free: Vec::new(),
@@ -264,7 +285,7 @@ impl Newton {
             )));
         }
         if params.ordering != self.ordering || params.threads != self.threads {
-            self.chol = Cholesky::new(params.ordering, params.threads);
+            self.lin.chol = Cholesky::new(params.ordering, params.threads);
             self.ordering = params.ordering;
             self.threads = params.threads;
         }
@@ -280,13 +301,14 @@ impl Newton {
                 self.free_dofs.push(d);
             }
         }
-        self.chol.set_dof_map(&self.free_dofs);
+        self.lin.chol.set_dof_map(&self.free_dofs);
+        self.lin.analysed_in_solve = false;
         let nf = self.free_dofs.len();
         self.g.resize(n, 0.0);
         self.p.resize(n, 0.0);
         self.rhs.resize(nf, 0.0);
         self.trial.resize(n, 0.0);
-        let lin0 = self.chol.stats;
+        let lin0 = self.lin.chol.stats;
 
         let mut e = obj.energy(x);
         let e0 = e;
@@ -307,7 +329,7 @@ impl Newton {
         };
         let moving = (0..n).any(|d| fixed[d] && target[d] != x[d]);
         if nf == 0 && !moving {
-            finish(&mut stats, &self.chol, e);
+            finish(&mut stats, &self.lin.chol, e);
             return Ok(stats);
         }
         let exact_wanted = params.hessian == HessianStrategy::ExactWhenDefinite;
@@ -315,57 +337,107 @@ impl Newton {
         let (mut rejected_in_a_row, mut wait) = (0u32, 0u64);
         for _ in 0..params.max_iterations {
             stats.iterations += 1;
-            let mut t = Instant::now();
+            let t = Instant::now();
             obj.begin_iteration(x);
-            self.g.iter_mut().for_each(|v| *v = 0.0);
-            obj.gradient(x, &mut self.g);
-            if let Some(bad) = self.g.iter().position(|v| !v.is_finite()) {
-                finish(&mut stats, &self.chol, e);
-                let _ = bad;
+            // The Hessian first; then its factorisation runs on another thread while this one
+            // computes the gradient (the exact Hessian's, if tried; the projected one after a
+            // rejection is factorised afterwards).
+            let try_exact = exact_wanted && wait == 0;
+            wait = wait.saturating_sub(1);
+            self.triplets.clear();
+            let exact = try_exact && obj.exact_hessian(x, &mut self.triplets);
+            if try_exact && !exact {
+                wait = u64::MAX;
+            }
+            if !exact {
+                self.triplets.clear();
+                obj.hessian(x, &mut self.triplets);
+            }
+            let hessian_s = t.elapsed().as_secs_f64();
+            let mut factor_result = None;
+            let mut gradient_s = 0.0;
+            {
+                let (lin, triplets, free) = (&mut self.lin, &self.triplets, &self.free);
+                let g = &mut self.g;
+                let mut factor = move || {
+                    lin.assemble(triplets, free, nf)?;
+                    if exact {
+                        lin.chol.try_factorize(&mut lin.csc)
+                    } else {
+                        lin.chol.factorize(&mut lin.csc).map(|()| true)
+                    }
+                };
+                let mut gradient = || {
+                    let t = Instant::now();
+                    g.iter_mut().for_each(|v| *v = 0.0);
+                    obj.gradient(x, g);
+                    gradient_s = t.elapsed().as_secs_f64();
+                };
+                if rayon::current_num_threads() > 1 {
+                    rayon::in_place_scope(|scope| {
+                        let out = &mut factor_result;
+                        scope.spawn(move |_| *out = Some(factor()));
+                        gradient();
+                    });
+                } else {
+                    gradient();
+                    factor_result = Some(factor());
+                }
+            }
+            // Work, not wall time: the gradient overlapped the factorisation.
+            stats.assembly_s += hessian_s + gradient_s + std::mem::take(&mut self.lin.csc_s);
+            if self.g.iter().any(|v| !v.is_finite()) {
+                finish(&mut stats, &self.lin.chol, e);
                 return Err(SolveError::NonFinite {
                     what: "gradient",
                     stats: Box::new(stats),
                 });
             }
-            let mut factorized = false;
-            let try_exact = exact_wanted && wait == 0;
-            wait = wait.saturating_sub(1);
-            if try_exact {
-                self.triplets.clear();
-                if obj.exact_hessian(x, &mut self.triplets) {
-                    self.assemble_triplets(nf, t, &mut stats, e)?;
-                    factorized = self
-                        .chol
-                        .try_factorize(&mut self.csc)
-                        .map_err(|err| self.linear_error(err, &mut stats, e))?;
-                    if factorized {
-                        stats.exact_iterations += 1;
-                        rejected_in_a_row = 0;
-                    } else {
-                        // Try again next iteration after a first rejection, then back off
-                        // (wait 1, 3, 7, … iterations): a solve whose exact Hessian stays
-                        // indefinite wastes O(log iterations) tries.
-                        stats.exact_rejections += 1;
-                        rejected_in_a_row += 1;
-                        wait = (1u64 << (rejected_in_a_row - 1).min(20)) - 1;
-                    }
-                    t = Instant::now();
-                } else {
-                    wait = u64::MAX;
-                }
-            }
-            if !factorized {
-                self.triplets.clear();
-                obj.hessian(x, &mut self.triplets);
-                self.assemble_triplets(nf, t, &mut stats, e)?;
-                if let Err(err) = self.chol.factorize(&mut self.csc) {
-                    finish(&mut stats, &self.chol, e);
+            let mut factorized = match factor_result.expect("the factorisation ran") {
+                Ok(ok) => ok,
+                Err(err) => {
+                    finish(&mut stats, &self.lin.chol, e);
                     return Err(SolveError::Linear {
                         source: err,
                         stats: Box::new(stats),
                     });
                 }
+            };
+            if exact {
+                if factorized {
+                    stats.exact_iterations += 1;
+                    rejected_in_a_row = 0;
+                } else {
+                    // Try again next iteration after a first rejection, then back off
+                    // (wait 1, 3, 7, … iterations): a solve whose exact Hessian stays
+                    // indefinite wastes O(log iterations) tries.
+                    stats.exact_rejections += 1;
+                    rejected_in_a_row += 1;
+                    wait = (1u64 << (rejected_in_a_row - 1).min(20)) - 1;
+                }
             }
+            if !factorized {
+                let t = Instant::now();
+                let factor_s_before =
+                    self.lin.chol.stats.numeric_s + self.lin.chol.stats.symbolic_s;
+                self.triplets.clear();
+                obj.hessian(x, &mut self.triplets);
+                let result = self
+                    .lin
+                    .assemble(&self.triplets, &self.free, nf)
+                    .and_then(|()| self.lin.chol.factorize(&mut self.lin.csc));
+                let factor_s = self.lin.chol.stats.numeric_s + self.lin.chol.stats.symbolic_s;
+                stats.assembly_s += t.elapsed().as_secs_f64() - (factor_s - factor_s_before);
+                if let Err(err) = result {
+                    finish(&mut stats, &self.lin.chol, e);
+                    return Err(SolveError::Linear {
+                        source: err,
+                        stats: Box::new(stats),
+                    });
+                }
+                factorized = true;
+            }
+            debug_assert!(factorized);
             // Prescribed increments of the fixed DOFs, and their coupling −H_fd p_d.
             self.p.iter_mut().for_each(|v| *v = 0.0);
             let mut pmax = 0.0f64;
@@ -391,7 +463,7 @@ impl Newton {
                 }
             }
             if nf > 0 {
-                self.chol.solve_in_place(&mut self.rhs);
+                self.lin.chol.solve_in_place(&mut self.rhs);
             }
             for (k, &d) in self.free_dofs.iter().enumerate() {
                 self.p[d] = self.rhs[k];
@@ -399,7 +471,7 @@ impl Newton {
                 gp += self.g[d] * self.rhs[k];
             }
             if !pmax.is_finite() {
-                finish(&mut stats, &self.chol, e);
+                finish(&mut stats, &self.lin.chol, e);
                 return Err(SolveError::NonFinite {
                     what: "Newton direction",
                     stats: Box::new(stats),
@@ -421,7 +493,7 @@ impl Newton {
                     && flat_history[k - 1] > 0.5 * flat_history[k - STAGNATION_ITERATIONS]
                 {
                     stats.roundoff_stops += 1;
-                    finish(&mut stats, &self.chol, e);
+                    finish(&mut stats, &self.lin.chol, e);
                     return Ok(stats);
                 }
             } else {
@@ -475,7 +547,7 @@ impl Newton {
                 && -gp <= 1e4 * ROUNDOFF * e.abs().max(e0.abs())
             {
                 stats.roundoff_stops += 1;
-                finish(&mut stats, &self.chol, e);
+                finish(&mut stats, &self.lin.chol, e);
                 return Ok(stats);
             }
             match accepted {
@@ -498,56 +570,68 @@ impl Newton {
                     // No step decreases the energy and the predicted decrease is within a few
                     // thousand ulps of it: stationary to working precision.
                     stats.roundoff_stops += 1;
-                    finish(&mut stats, &self.chol, e);
+                    finish(&mut stats, &self.lin.chol, e);
                     return Ok(stats);
                 }
                 None => {
-                    finish(&mut stats, &self.chol, e);
+                    finish(&mut stats, &self.lin.chol, e);
                     return Err(SolveError::LineSearchStalled {
                         stats: Box::new(stats),
                     });
                 }
             }
             if converged {
-                finish(&mut stats, &self.chol, e);
+                finish(&mut stats, &self.lin.chol, e);
                 return Ok(stats);
             }
         }
-        finish(&mut stats, &self.chol, e);
+        finish(&mut stats, &self.lin.chol, e);
         Err(SolveError::IterationLimit {
             stats: Box::new(stats),
         })
     }
 
-    /// The Hessian triplets into the free-DOF CSC (assembly time counted from `since`), and a
-    /// new symbolic analysis if the sparsity pattern changed.
-    fn assemble_triplets(
-        &mut self,
-        nf: usize,
-        since: Instant,
-        stats: &mut SolveStats,
-        e: f64,
-    ) -> Result<(), SolveError> {
-        let changed = self.csc.assemble(&self.triplets, &self.free, nf);
-        stats.assembly_s += since.elapsed().as_secs_f64();
-        if changed || !self.chol.is_analyzed() {
-            self.chol
-                .analyze(&self.csc)
-                .map_err(|err| self.linear_error(err, stats, e))?;
-        }
-        Ok(())
-    }
-
-    fn linear_error(&self, err: LinearError, stats: &mut SolveStats, e: f64) -> SolveError {
-        stats.final_energy = e;
-        SolveError::Linear {
-            source: err,
-            stats: Box::new(stats.clone()),
-        }
-    }
-
     /// Statistics of the linear algebra since this solver was created.
     pub fn linear_stats(&self) -> crate::linear::LinearStats {
-        self.chol.stats
+        self.lin.chol.stats
+    }
+}
+
+impl Linear {
+    /// The Hessian triplets into the free-DOF CSC, and a new symbolic analysis if the sparsity
+    /// pattern is not covered by the analysed one.
+    fn assemble(
+        &mut self,
+        triplets: &Triplets,
+        free: &[u32],
+        nf: usize,
+    ) -> Result<(), LinearError> {
+        let t = Instant::now();
+        let changed = self.csc.assemble(triplets, free, nf);
+        self.csc_s += t.elapsed().as_secs_f64();
+        if changed || !self.chol.is_analyzed() {
+            // A pattern the analysed one contains is factorised with it (explicit zeros). Within
+            // a solve the next analysis covers the union of the patterns met so far, so a
+            // contact coupling that comes and goes over the iterations costs one analysis, not
+            // one per change. Unions are only formed with an analysis made in the same solve: a
+            // new solve's unknowns may mean other things, and patterns merged across solves
+            // would grow without bound (a contained pattern is still reused: a correct, if
+            // wider, structure).
+            let t = Instant::now();
+            let covered = self.chol.is_analyzed()
+                && self.csc.widen(
+                    &self.analysed_col_ptr,
+                    &self.analysed_row_idx,
+                    self.analysed_in_solve,
+                );
+            self.chol.stats.symbolic_s += t.elapsed().as_secs_f64();
+            if !covered {
+                self.chol.analyze(&self.csc)?;
+                self.analysed_col_ptr.clone_from(&self.csc.col_ptr);
+                self.analysed_row_idx.clone_from(&self.csc.row_idx);
+                self.analysed_in_solve = true;
+            }
+        }
+        Ok(())
     }
 }

@@ -71,6 +71,20 @@ impl Triplets {
         self.vals.is_empty()
     }
 
+    /// Append `n` entries written by `fill(rows, cols, values)` into the new tail (given zeroed,
+    /// `n` long each) — for writing many entries at once, e.g. in parallel over disjoint parts.
+    pub fn append_with(&mut self, n: usize, fill: impl FnOnce(&mut [u32], &mut [u32], &mut [f64])) {
+        let start = self.vals.len();
+        self.rows.resize(start + n, 0);
+        self.cols.resize(start + n, 0);
+        self.vals.resize(start + n, 0.0);
+        fill(
+            &mut self.rows[start..],
+            &mut self.cols[start..],
+            &mut self.vals[start..],
+        );
+    }
+
     /// Append another list (e.g. one built by another thread).
     pub fn append(&mut self, other: &Triplets) {
         self.rows.extend_from_slice(&other.rows);
@@ -100,6 +114,8 @@ pub struct UpperCsc {
     last_free: Vec<u32>,
     tmp_idx: Vec<u32>,
     pos: Vec<u32>,
+    // Scratch of `widen`: old value position → new one.
+    remap: Vec<u32>,
     /// Builds that reused the previous structure (`scatter`) and full ones.
     pub(crate) reused: usize,
     pub(crate) full: usize,
@@ -278,6 +294,103 @@ impl UpperCsc {
     }
 }
 
+impl UpperCsc {
+    /// Rewrite this matrix into a wider pattern `base` (upper CSC of the same size, rows sorted
+    /// in each column, every diagonal present): the union of both patterns, the new entries
+    /// explicit zeros. Returns whether this matrix's pattern was already contained in `base` —
+    /// the result's pattern is then exactly `base`. With `union == false` a pattern not
+    /// contained in `base` is left as it is. The values keep their bits, and a later
+    /// [`UpperCsc::assemble`] with the same triplet structure scatters into the widened layout.
+    ///
+    /// This lets a factorisation analysed for `base` serve every matrix whose pattern it
+    /// contains (a contact pair that appears in one Newton iteration and not the next), and an
+    /// analysis cover the union of the patterns seen so far.
+    pub fn widen(&mut self, base_col_ptr: &[usize], base_row_idx: &[usize], union: bool) -> bool {
+        let n = self.n;
+        if base_col_ptr.len() != n + 1 || self.col_ptr.len() != n + 1 {
+            return false;
+        }
+        // Pass 1: containment, and the union's size.
+        let mut contained = true;
+        let mut union_nnz = 0;
+        for c in 0..n {
+            let (mine, base) = (
+                &self.row_idx[self.col_ptr[c]..self.col_ptr[c + 1]],
+                &base_row_idx[base_col_ptr[c]..base_col_ptr[c + 1]],
+            );
+            let (mut i, mut j) = (0, 0);
+            while i < mine.len() || j < base.len() {
+                if j == base.len() || (i < mine.len() && mine[i] < base[j]) {
+                    contained = false;
+                    i += 1;
+                } else if i == mine.len() || base[j] < mine[i] {
+                    j += 1;
+                } else {
+                    i += 1;
+                    j += 1;
+                }
+                union_nnz += 1;
+            }
+        }
+        if (!contained && !union) || union_nnz >= u32::MAX as usize {
+            return false;
+        }
+        if union_nnz == self.values.len() {
+            // Same pattern already.
+            return contained;
+        }
+        // Pass 2: merge into the union; remember where each old value went.
+        self.remap.clear();
+        self.remap.resize(self.values.len(), 0);
+        let mut rows = std::mem::take(&mut self.tmp_rows);
+        let mut vals = std::mem::take(&mut self.tmp_vals);
+        rows.clear();
+        vals.clear();
+        rows.reserve(union_nnz);
+        vals.reserve(union_nnz);
+        self.count.clear();
+        self.count.push(0);
+        for c in 0..n {
+            let (a, b) = (self.col_ptr[c], self.col_ptr[c + 1]);
+            let base = &base_row_idx[base_col_ptr[c]..base_col_ptr[c + 1]];
+            let (mut i, mut j) = (a, 0);
+            while i < b || j < base.len() {
+                if j == base.len() || (i < b && self.row_idx[i] < base[j]) {
+                    self.remap[i] = rows.len() as u32;
+                    rows.push(self.row_idx[i] as u32);
+                    vals.push(self.values[i]);
+                    i += 1;
+                } else if i == b || base[j] < self.row_idx[i] {
+                    rows.push(base[j] as u32);
+                    vals.push(0.0);
+                    j += 1;
+                } else {
+                    self.remap[i] = rows.len() as u32;
+                    rows.push(self.row_idx[i] as u32);
+                    vals.push(self.values[i]);
+                    i += 1;
+                    j += 1;
+                }
+            }
+            self.count.push(rows.len());
+        }
+        self.col_ptr.clear();
+        self.col_ptr.extend_from_slice(&self.count);
+        self.row_idx.clear();
+        self.row_idx.extend(rows.iter().map(|&r| r as usize));
+        self.values.clear();
+        self.values.extend_from_slice(&vals);
+        for at in self.pos.iter_mut() {
+            if *at != u32::MAX {
+                *at = self.remap[*at as usize];
+            }
+        }
+        self.tmp_rows = rows;
+        self.tmp_vals = vals;
+        contained
+    }
+}
+
 /// Sort `(rows, vals, idx)` by row (stably) and merge duplicates (summing values in their
 /// original order); `placed(idx, local)` is told the merged position of every entry whose
 /// `idx` is not `u32::MAX`. Returns the merged length.
@@ -440,5 +553,100 @@ mod tests {
             assert_eq!(bits(a.values()), bits(fresh.values()));
         }
         assert_eq!((a.full, a.reused), (3, 1));
+    }
+
+    fn dense(a: &UpperCsc) -> Vec<Vec<f64>> {
+        let mut d = vec![vec![0.0; a.n()]; a.n()];
+        for c in 0..a.n() {
+            for k in a.col_ptr()[c]..a.col_ptr()[c + 1] {
+                d[a.row_idx()[k]][c] += a.values()[k];
+            }
+        }
+        d
+    }
+
+    fn pattern(a: &UpperCsc) -> Vec<(usize, usize)> {
+        (0..a.n())
+            .flat_map(|c| (a.col_ptr()[c]..a.col_ptr()[c + 1]).map(move |k| (c, k)))
+            .map(|(c, k)| (a.row_idx()[k], c))
+            .collect()
+    }
+
+    /// `widen`: a contained pattern becomes exactly the base (new entries zero, values and
+    /// later structure-reusing builds unchanged); a pattern not contained is left alone, or
+    /// merged into the union.
+    #[test]
+    fn widening_into_a_containing_pattern_keeps_the_matrix_and_later_builds() {
+        let mut seed = 987u64;
+        let mut rnd = move || {
+            seed ^= seed << 13;
+            seed ^= seed >> 7;
+            seed ^= seed << 17;
+            seed
+        };
+        let n = 30usize;
+        let free: Vec<u32> = (0..n as u32).collect();
+        let mut entries = Vec::new();
+        for _ in 0..200 {
+            let r = (rnd() % n as u64) as usize;
+            let c = (r + (rnd() % 8) as usize).min(n - 1);
+            entries.push((r, c, (rnd() % 1000) as f64 / 3.0 - 100.0));
+        }
+        let build = |es: &[(usize, usize, f64)]| {
+            let mut t = Triplets::default();
+            for &(r, c, v) in es {
+                t.push(r, c, v);
+                t.push(c, r, v);
+            }
+            t
+        };
+        // Base: all entries plus a far coupling; the matrix: a subset of the entries.
+        let mut all = entries.clone();
+        all.push((0, n - 1, 1.0));
+        let mut base = UpperCsc::default();
+        base.assemble(&build(&all), &free, n);
+        let subset: Vec<_> = entries.iter().copied().step_by(3).collect();
+        let mut t = build(&subset);
+        let mut a = UpperCsc::default();
+        a.assemble(&t, &free, n);
+        let before = dense(&a);
+        assert_ne!(pattern(&a), pattern(&base));
+        assert!(a.widen(base.col_ptr(), base.row_idx(), false));
+        assert_eq!(pattern(&a), pattern(&base));
+        assert_eq!(dense(&a), before, "widening changes no value");
+        // A build with the same triplet structure scatters into the widened layout.
+        for (k, v) in t.vals.iter_mut().enumerate() {
+            *v = (k as f64 * 0.37).cos() * 10.0;
+        }
+        assert!(!a.assemble(&t, &free, n), "same pattern as the widened one");
+        assert_eq!(pattern(&a), pattern(&base));
+        let mut fresh = UpperCsc::default();
+        fresh.assemble(&t, &free, n);
+        assert_eq!(dense(&a), dense(&fresh));
+
+        // Not contained: left alone without `union`, merged with it.
+        let mut extra = subset.clone();
+        extra.push((1, n - 2, 5.0));
+        let t2 = build(&extra);
+        let mut b = UpperCsc::default();
+        b.assemble(&t2, &free, n);
+        let (pat, val) = (pattern(&b), dense(&b));
+        assert!(!b.widen(base.col_ptr(), base.row_idx(), false));
+        assert_eq!((pattern(&b), dense(&b)), (pat.clone(), val.clone()));
+        assert!(!b.widen(base.col_ptr(), base.row_idx(), true));
+        let mut union: Vec<_> = pat.iter().chain(pattern(&base).iter()).copied().collect();
+        union.sort_by_key(|&(r, c)| (c, r));
+        union.dedup();
+        assert_eq!(pattern(&b), union);
+        assert_eq!(dense(&b), val);
+        // The union contains the base: the base widens into it exactly.
+        let mut base2 = base.clone();
+        assert!(base2.widen(b.col_ptr(), b.row_idx(), false));
+        assert_eq!(pattern(&base2), union);
+        assert_eq!(dense(&base2), dense(&base));
+        // A base of another size is never containing.
+        let mut small = UpperCsc::default();
+        small.assemble(&build(&[(0, 1, 1.0)]), &[0, 1], 2);
+        assert!(!a.widen(small.col_ptr(), small.row_idx(), true));
     }
 }

@@ -909,3 +909,84 @@ fn a_backtracked_step_that_leaves_the_energy_unchanged_ends_the_solve_as_station
     assert_eq!(stats.roundoff_stops, 1, "{stats:?}");
     assert_eq!(stats.iterations, 1, "{stats:?}");
 }
+
+/// `E = Σ ¼(xᵢ − i)⁴ + ½(xᵢ − i)²` whose Hessian *pattern* changes between calls, like a
+/// contact pair that is active in one Newton iteration and not the next: every other call adds
+/// a (zero-valued) coupling of the first and last DOF, every third one of the second and the
+/// second-to-last.
+struct Toggling {
+    n: usize,
+    calls: usize,
+}
+
+impl Objective for Toggling {
+    fn num_dofs(&self) -> usize {
+        self.n
+    }
+    fn energy(&mut self, x: &[f64]) -> f64 {
+        x.iter()
+            .enumerate()
+            .map(|(i, &v)| {
+                let r = v - i as f64;
+                0.25 * r.powi(4) + 0.5 * r * r
+            })
+            .sum()
+    }
+    fn gradient(&mut self, x: &[f64], g: &mut [f64]) {
+        for (i, &v) in x.iter().enumerate() {
+            let r = v - i as f64;
+            g[i] = r.powi(3) + r;
+        }
+    }
+    fn hessian(&mut self, x: &[f64], h: &mut Triplets) {
+        for (i, &v) in x.iter().enumerate() {
+            let r = v - i as f64;
+            h.push(i, i, 3.0 * r * r + 1.0);
+        }
+        self.calls += 1;
+        let n = self.n;
+        if self.calls.is_multiple_of(2) {
+            h.push(0, n - 1, 0.0);
+            h.push(n - 1, 0, 0.0);
+        }
+        if self.calls.is_multiple_of(3) {
+            h.push(1, n - 2, 0.0);
+            h.push(n - 2, 1, 0.0);
+        }
+    }
+}
+
+/// A pattern that changes between the iterations of a solve is analysed at most once per new
+/// coupling (the analysis covers the union of the patterns met so far), and a later solve whose
+/// pattern the analysed one contains needs none — with the same minimiser.
+#[test]
+fn patterns_that_come_and_go_within_a_solve_share_one_analysis() {
+    let n = 12;
+    let mut obj = Toggling { n, calls: 0 };
+    let mut newton = Newton::new();
+    let params = NewtonParams {
+        tolerance: 1e-12,
+        ..Default::default()
+    };
+    let mut x = vec![5.0; n];
+    let stats = newton
+        .minimize(&mut obj, &mut x, &vec![false; n], &params)
+        .unwrap();
+    assert!(stats.iterations >= 6, "{} iterations", stats.iterations);
+    // Calls 1 (diagonal), 2 (+ first coupling: union), 3 (+ second: union); from then on every
+    // pattern is contained in the union of all three.
+    assert_eq!(stats.symbolic_analyses, 3);
+    for (i, v) in x.iter().enumerate() {
+        assert!((v - i as f64).abs() < 1e-10, "x[{i}] = {v}");
+    }
+    // A second solve: every pattern is contained in the last analysis.
+    let mut y = vec![-3.0; n];
+    let stats = newton
+        .minimize(&mut obj, &mut y, &vec![false; n], &params)
+        .unwrap();
+    assert!(stats.iterations >= 4);
+    assert_eq!(stats.symbolic_analyses, 0);
+    for (i, v) in y.iter().enumerate() {
+        assert!((v - i as f64).abs() < 1e-10, "y[{i}] = {v}");
+    }
+}
