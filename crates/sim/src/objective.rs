@@ -1254,6 +1254,54 @@ mod tests {
 
     /// The Hessian built from the derivatives the gradient kept equals one computed afresh, and
     /// a new friction operator or a new x invalidates what was kept.
+    /// The Newton solver asks for the Hessian before the gradient: the gradient then scatters
+    /// the contact derivatives the Hessian computed — bitwise the gradient computed afresh, with
+    /// the same contact count and smallest distance, for either kind of Hessian, and not after
+    /// the friction operator was lagged again.
+    #[test]
+    fn gradient_after_the_hessian_equals_a_fresh_one() {
+        let mut w = world::<2>(SCENE_2D);
+        let setup = w.setup().unwrap();
+        let n = setup.n_dofs;
+        let r = noise(n, 7);
+        let x: Vec<f64> = (0..n).map(|d| setup.x0[d] + 1e-4 * r[d]).collect();
+        let fresh = |lag_at: &[f64]| {
+            let mut obj = setup.objective(&w);
+            obj.lag_friction(lag_at);
+            let mut g = vec![0.0; n];
+            obj.gradient(&x, &mut g);
+            (g, obj.last_contacts)
+        };
+        let bits = |g: &[f64]| g.iter().map(|v| v.to_bits()).collect::<Vec<_>>();
+        for exact in [false, true] {
+            let mut obj = setup.objective(&w);
+            obj.lag_friction(&setup.x0);
+            let mut t = Triplets::default();
+            if exact {
+                obj.exact_hessian(&x, &mut t);
+            } else {
+                obj.hessian(&x, &mut t);
+            }
+            let mut g = vec![0.0; n];
+            obj.gradient(&x, &mut g);
+            let (g0, contacts) = fresh(&setup.x0);
+            assert!(contacts.0 > 10, "contact terms: {}", contacts.0);
+            assert_eq!(bits(&g), bits(&g0), "exact = {exact}");
+            assert_eq!(obj.last_contacts.0, contacts.0);
+            assert_eq!(obj.last_contacts.1.to_bits(), contacts.1.to_bits());
+            // Friction lagged again at x: the cached derivatives are stale.
+            obj.lag_friction(&x);
+            obj.gradient(&x, &mut g);
+            let (g1, _) = fresh(&x);
+            assert_eq!(bits(&g), bits(&g1), "relagged, exact = {exact}");
+            assert_ne!(
+                bits(&g1),
+                bits(&g0),
+                "the friction operator must matter here"
+            );
+        }
+    }
+
     #[test]
     fn hessian_from_the_gradients_contact_derivatives_equals_a_fresh_one() {
         let mut w = world::<2>(SCENE_2D);

@@ -418,16 +418,14 @@ impl Newton {
             }
             if !factorized {
                 let t = Instant::now();
-                let factor_s_before =
-                    self.lin.chol.stats.numeric_s + self.lin.chol.stats.symbolic_s;
                 self.triplets.clear();
                 obj.hessian(x, &mut self.triplets);
+                stats.assembly_s += t.elapsed().as_secs_f64();
                 let result = self
                     .lin
                     .assemble(&self.triplets, &self.free, nf)
                     .and_then(|()| self.lin.chol.factorize(&mut self.lin.csc));
-                let factor_s = self.lin.chol.stats.numeric_s + self.lin.chol.stats.symbolic_s;
-                stats.assembly_s += t.elapsed().as_secs_f64() - (factor_s - factor_s_before);
+                stats.assembly_s += std::mem::take(&mut self.lin.csc_s);
                 if let Err(err) = result {
                     finish(&mut stats, &self.lin.chol, e);
                     return Err(SolveError::Linear {
