@@ -106,6 +106,22 @@ pub struct FemBody<const D: usize> {
     pub vertex_weight: Vec<f64>,
 }
 
+impl<const D: usize> FemBody<D> {
+    /// The body's centre of mass and the velocity of it (mass-weighted means of the vertices'
+    /// positions and velocities, lumped masses).
+    pub fn centre_of_mass(&self) -> (SVector<f64, D>, SVector<f64, D>) {
+        let m: f64 = self.mass.iter().sum();
+        let weighted = |q: &[SVector<f64, D>]| {
+            q.iter()
+                .zip(&self.mass)
+                .map(|(q, mm)| q * *mm)
+                .sum::<SVector<f64, D>>()
+                / m
+        };
+        (weighted(&self.x), weighted(&self.v))
+    }
+}
+
 /// Who the "particles" of a contact pair are.
 #[derive(Clone, Debug)]
 pub enum Points {

@@ -361,23 +361,7 @@ fn blocks_3d_separate_with_the_iteration_and_pic_sticks_without() {
         let dir = tempfile::tempdir().unwrap();
         let mut rel = Vec::new();
         femp::run::run_with::<3>(s, dir.path(), &quiet(None), |w, _| {
-            let com = |b: &femp::world::FemBody<3>| {
-                let m: f64 = b.mass.iter().sum();
-                let x: nalgebra::Vector3<f64> =
-                    b.x.iter()
-                        .zip(&b.mass)
-                        .map(|(x, mm)| x * *mm)
-                        .sum::<nalgebra::Vector3<f64>>()
-                        / m;
-                let v: nalgebra::Vector3<f64> =
-                    b.v.iter()
-                        .zip(&b.mass)
-                        .map(|(v, mm)| v * *mm)
-                        .sum::<nalgebra::Vector3<f64>>()
-                        / m;
-                (x, v)
-            };
-            let ((x1, v1), (x2, v2)) = (com(&w.fem[0]), com(&w.fem[1]));
+            let ((x1, v1), (x2, v2)) = (w.fem[0].centre_of_mass(), w.fem[1].centre_of_mass());
             rel.push((v2 - v1).dot(&(x2 - x1).normalize()));
         })
         .unwrap();

@@ -293,23 +293,7 @@ fn blocks_refinement_2d(ctx: &Ctx, out: &mut Outcome) -> Result<()> {
 /// Relative velocity of two FEM bodies' centres of mass along the line joining them (negative:
 /// approaching; ≈ 0: stuck together; positive: separating).
 fn centres_relative_velocity(w: &femp::World<3>) -> f64 {
-    let com = |b: &femp::world::FemBody<3>| {
-        let m: f64 = b.mass.iter().sum();
-        let x =
-            b.x.iter()
-                .zip(&b.mass)
-                .map(|(x, mm)| x * *mm)
-                .sum::<nalgebra::Vector3<f64>>()
-                / m;
-        let v =
-            b.v.iter()
-                .zip(&b.mass)
-                .map(|(v, mm)| v * *mm)
-                .sum::<nalgebra::Vector3<f64>>()
-                / m;
-        (x, v)
-    };
-    let ((x1, v1), (x2, v2)) = (com(&w.fem[0]), com(&w.fem[1]));
+    let ((x1, v1), (x2, v2)) = (w.fem[0].centre_of_mass(), w.fem[1].centre_of_mass());
     (v2 - v1).dot(&(x2 - x1).normalize())
 }
 
