@@ -6,7 +6,8 @@
 //!   the largest feasible step along a direction (the caller answers with CCD and det F).
 //! * [`Newton`] — BFEMP Algorithm 2: Cholesky-solved Newton directions (faer, symbolic
 //!   factorisation reused while the pattern holds, METIS nested dissection or AMD ordering,
-//!   diagonal shifts on failure), line search from `0.9 ×` the feasible step, Armijo
+//!   diagonal shifts on failure) or, with [`LinearSolver::Pcg`], Jacobi-preconditioned
+//!   conjugate gradients ([`Pcg`]); line search from `0.9 ×` the feasible step, Armijo
 //!   backtracking, stop at `‖p‖_∞/Δt < ε_d`; statistics and timings for every solve; errors
 //!   that carry them.
 //! * [`Integrator`] — backward Euler and Newmark in incremental-potential form.
@@ -32,12 +33,15 @@ mod error;
 mod integrator;
 pub mod linear;
 mod newton;
+pub mod pcg;
 mod sparse;
 
 pub use error::SolveError;
 pub use integrator::Integrator;
 pub use linear::{Cholesky, LinearError, LinearStats, Ordering, Threads};
 pub use newton::{
-    HessianStrategy, Newton, NewtonParams, Objective, SolveStats, StepBound, StepLimit,
+    HessianStrategy, LinearSolver, Newton, NewtonParams, Objective, SolveStats, StepBound,
+    StepLimit,
 };
+pub use pcg::{Pcg, PcgOutcome};
 pub use sparse::{Triplets, UpperCsc};

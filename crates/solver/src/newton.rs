@@ -15,6 +15,7 @@
 use std::time::Instant;
 
 use crate::linear::{Cholesky, LinearError, Ordering, Threads};
+use crate::pcg::Pcg;
 use crate::{SolveError, Triplets, UpperCsc};
 
 /// What limited a step: the objective's answer to "how far can we go along `p`".
@@ -91,6 +92,29 @@ pub enum HessianStrategy {
     ExactWhenDefinite,
 }
 
+/// How an iteration solves `H p = −g` for its direction.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub enum LinearSolver {
+    /// Sparse Cholesky (faer) of every Hessian, the symbolic analysis reused while the pattern
+    /// holds. Exact directions; the cost grows with the factor's fill.
+    #[default]
+    Cholesky,
+    /// Jacobi-preconditioned conjugate gradients ([`crate::Pcg`]) on the assembled Hessian,
+    /// from `p = 0`, until the preconditioned residual has fallen by `rtol`, at most
+    /// `max_iterations` products. No factorisation and no symbolic analysis: for
+    /// well-conditioned (mass-dominated) Hessians at small time steps. With
+    /// [`HessianStrategy::ExactWhenDefinite`] an exact Hessian along which CG meets
+    /// non-positive curvature, or on which it does not converge, is rejected like one whose
+    /// factorisation fails; a projected Hessian on which CG does not converge is factorised
+    /// (Cholesky), so every direction is as good as the direct solver's up to `rtol`.
+    Pcg {
+        /// Relative reduction of the preconditioned residual `√(rᵀD⁻¹r)`.
+        rtol: f64,
+        /// Matrix products before falling back to Cholesky.
+        max_iterations: usize,
+    },
+}
+
 /// Parameters of a solve.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct NewtonParams {
@@ -112,6 +136,8 @@ pub struct NewtonParams {
     pub threads: Threads,
     /// Which Hessian the iterations factorise.
     pub hessian: HessianStrategy,
+    /// How the Newton direction is solved for.
+    pub linear: LinearSolver,
 }
 
 impl Default for NewtonParams {
@@ -126,6 +152,7 @@ impl Default for NewtonParams {
             ordering: Ordering::Auto,
             threads: Threads::Auto,
             hessian: HessianStrategy::Projected,
+            linear: LinearSolver::Cholesky,
         }
     }
 }
@@ -166,6 +193,12 @@ pub struct SolveStats {
     pub roundoff_stops: usize,
     /// Symbolic analyses (sparsity pattern changes).
     pub symbolic_analyses: usize,
+    /// Conjugate-gradient iterations (matrix products), with [`LinearSolver::Pcg`].
+    pub pcg_iterations: usize,
+    /// Directions that CG did not deliver on a projected Hessian and Cholesky did.
+    pub pcg_fallbacks: usize,
+    /// Seconds in conjugate gradients.
+    pub pcg_s: f64,
     /// Seconds assembling gradient and Hessian (objective calls and CSC build). Work, not wall
     /// time: the gradient is computed while another thread builds the CSC and factorises.
     pub assembly_s: f64,
@@ -192,6 +225,8 @@ pub struct Newton {
     p: Vec<f64>,
     rhs: Vec<f64>,
     trial: Vec<f64>,
+    pcg: Pcg,
+    sol: Vec<f64>,
 }
 
 /// The Hessian's sparse matrix and its factorisation: what a Newton iteration can hand to
@@ -235,6 +270,8 @@ impl Newton {
             p: Vec::new(),
             rhs: Vec::new(),
             trial: Vec::new(),
+            pcg: Pcg::new(),
+            sol: Vec::new(),
         }
     }
 
@@ -307,6 +344,7 @@ impl Newton {
         self.g.resize(n, 0.0);
         self.p.resize(n, 0.0);
         self.rhs.resize(nf, 0.0);
+        self.sol.resize(nf, 0.0);
         self.trial.resize(n, 0.0);
         let lin0 = self.lin.chol.stats;
 
@@ -335,6 +373,8 @@ impl Newton {
         let exact_wanted = params.hessian == HessianStrategy::ExactWhenDefinite;
         // Consecutive rejected exact Hessians, and iterations to wait before the next try.
         let (mut rejected_in_a_row, mut wait) = (0u32, 0u64);
+        // CG gave up on a projected Hessian in this solve: the rest of it uses Cholesky.
+        let mut cg_gave_up = false;
         for _ in 0..params.max_iterations {
             stats.iterations += 1;
             let t = Instant::now();
@@ -356,10 +396,22 @@ impl Newton {
             let hessian_s = t.elapsed().as_secs_f64();
             let mut factor_result = None;
             let mut gradient_s = 0.0;
+            let pcg = match params.linear {
+                LinearSolver::Pcg {
+                    rtol,
+                    max_iterations,
+                } if !cg_gave_up => Some((rtol, max_iterations)),
+                _ => None,
+            };
             {
                 let (lin, triplets, free) = (&mut self.lin, &self.triplets, &self.free);
                 let g = &mut self.g;
                 let mut factor = move || {
+                    if pcg.is_some() {
+                        // CG needs the matrix only.
+                        lin.build(triplets, free, nf);
+                        return Ok(true);
+                    }
                     lin.assemble(triplets, free, nf)?;
                     if exact {
                         lin.chol.try_factorize(&mut lin.csc)
@@ -403,65 +455,104 @@ impl Newton {
                     });
                 }
             };
-            if exact {
-                if factorized {
+            // With CG: solve now (the exact Hessian is rejected if CG meets non-positive
+            // curvature or does not converge); a projected Hessian CG cannot do is factorised.
+            let mut solved = false;
+            if let Some((rtol, max_it)) = pcg {
+                for attempt in 0..2 {
+                    self.prescribed_part(fixed, target, x);
+                    let t = Instant::now();
+                    let out = self
+                        .pcg
+                        .solve(&self.lin.csc, &self.rhs, &mut self.sol, rtol, max_it);
+                    stats.pcg_s += t.elapsed().as_secs_f64();
+                    stats.pcg_iterations += out.iterations();
+                    if out.converged() {
+                        self.rhs.copy_from_slice(&self.sol);
+                        solved = true;
+                    }
+                    if attempt == 0 && exact {
+                        factorized = solved;
+                    }
+                    if solved || !(attempt == 0 && exact) {
+                        break;
+                    }
+                    // The exact Hessian is rejected: CG on the projected one.
+                    reject_exact(&mut stats, &mut rejected_in_a_row, &mut wait);
+                    let t = Instant::now();
+                    self.triplets.clear();
+                    obj.hessian(x, &mut self.triplets);
+                    self.lin.build(&self.triplets, &self.free, nf);
+                    stats.assembly_s +=
+                        t.elapsed().as_secs_f64() + std::mem::take(&mut self.lin.csc_s);
+                }
+                if exact && factorized {
                     stats.exact_iterations += 1;
                     rejected_in_a_row = 0;
-                } else {
-                    // Try again next iteration after a first rejection, then back off
-                    // (wait 1, 3, 7, … iterations): a solve whose exact Hessian stays
-                    // indefinite wastes O(log iterations) tries.
-                    stats.exact_rejections += 1;
-                    rejected_in_a_row += 1;
-                    wait = (1u64 << (rejected_in_a_row - 1).min(20)) - 1;
+                }
+                if !solved {
+                    // Cholesky of the (projected) matrix already built, and for the rest of the
+                    // solve: its Hessians are alike.
+                    stats.pcg_fallbacks += 1;
+                    cg_gave_up = true;
+                    let result = self
+                        .lin
+                        .ensure_analysed()
+                        .and_then(|()| self.lin.chol.factorize(&mut self.lin.csc));
+                    if let Err(err) = result {
+                        finish(&mut stats, &self.lin.chol, e);
+                        return Err(SolveError::Linear {
+                            source: err,
+                            stats: Box::new(stats),
+                        });
+                    }
+                    self.prescribed_part(fixed, target, x);
+                    if nf > 0 {
+                        self.lin.chol.solve_in_place(&mut self.rhs);
+                    }
+                }
+            } else {
+                if exact {
+                    if factorized {
+                        stats.exact_iterations += 1;
+                        rejected_in_a_row = 0;
+                    } else {
+                        reject_exact(&mut stats, &mut rejected_in_a_row, &mut wait);
+                    }
+                }
+                if !factorized {
+                    let t = Instant::now();
+                    self.triplets.clear();
+                    obj.hessian(x, &mut self.triplets);
+                    stats.assembly_s += t.elapsed().as_secs_f64();
+                    let result = self
+                        .lin
+                        .assemble(&self.triplets, &self.free, nf)
+                        .and_then(|()| self.lin.chol.factorize(&mut self.lin.csc));
+                    stats.assembly_s += std::mem::take(&mut self.lin.csc_s);
+                    if let Err(err) = result {
+                        finish(&mut stats, &self.lin.chol, e);
+                        return Err(SolveError::Linear {
+                            source: err,
+                            stats: Box::new(stats),
+                        });
+                    }
+                    factorized = true;
+                }
+                debug_assert!(factorized);
+                self.prescribed_part(fixed, target, x);
+                if nf > 0 {
+                    self.lin.chol.solve_in_place(&mut self.rhs);
                 }
             }
-            if !factorized {
-                let t = Instant::now();
-                self.triplets.clear();
-                obj.hessian(x, &mut self.triplets);
-                stats.assembly_s += t.elapsed().as_secs_f64();
-                let result = self
-                    .lin
-                    .assemble(&self.triplets, &self.free, nf)
-                    .and_then(|()| self.lin.chol.factorize(&mut self.lin.csc));
-                stats.assembly_s += std::mem::take(&mut self.lin.csc_s);
-                if let Err(err) = result {
-                    finish(&mut stats, &self.lin.chol, e);
-                    return Err(SolveError::Linear {
-                        source: err,
-                        stats: Box::new(stats),
-                    });
-                }
-                factorized = true;
-            }
-            debug_assert!(factorized);
-            // Prescribed increments of the fixed DOFs, and their coupling −H_fd p_d.
-            self.p.iter_mut().for_each(|v| *v = 0.0);
+            // The direction: prescribed increments of the fixed DOFs, the solve on free ones.
             let mut pmax = 0.0f64;
             let mut gp = 0.0;
             for d in 0..n {
                 if fixed[d] {
-                    self.p[d] = target[d] - x[d];
                     pmax = pmax.max(self.p[d].abs());
                     gp += self.g[d] * self.p[d];
                 }
-            }
-            for (k, &d) in self.free_dofs.iter().enumerate() {
-                self.rhs[k] = -self.g[d];
-            }
-            if pmax > 0.0 {
-                let t = &self.triplets;
-                for k in 0..t.vals.len() {
-                    let (r, c) = (t.rows[k] as usize, t.cols[k] as usize);
-                    let fr = self.free[r];
-                    if fr != u32::MAX && fixed[c] {
-                        self.rhs[fr as usize] -= t.vals[k] * self.p[c];
-                    }
-                }
-            }
-            if nf > 0 {
-                self.lin.chol.solve_in_place(&mut self.rhs);
             }
             for (k, &d) in self.free_dofs.iter().enumerate() {
                 self.p[d] = self.rhs[k];
@@ -589,13 +680,75 @@ impl Newton {
         })
     }
 
+    /// `p` zero on free DOFs and the prescribed increment `target − x` on fixed ones; the
+    /// right-hand side `−g_f − H_fd p_d` on the free DOFs.
+    fn prescribed_part(&mut self, fixed: &[bool], target: &[f64], x: &[f64]) {
+        self.p.iter_mut().for_each(|v| *v = 0.0);
+        let mut moving = false;
+        for d in 0..self.p.len() {
+            if fixed[d] {
+                self.p[d] = target[d] - x[d];
+                moving |= self.p[d] != 0.0;
+            }
+        }
+        for (k, &d) in self.free_dofs.iter().enumerate() {
+            self.rhs[k] = -self.g[d];
+        }
+        if moving {
+            let t = &self.triplets;
+            for k in 0..t.vals.len() {
+                let (r, c) = (t.rows[k] as usize, t.cols[k] as usize);
+                let fr = self.free[r];
+                if fr != u32::MAX && fixed[c] {
+                    self.rhs[fr as usize] -= t.vals[k] * self.p[c];
+                }
+            }
+        }
+    }
+
     /// Statistics of the linear algebra since this solver was created.
     pub fn linear_stats(&self) -> crate::linear::LinearStats {
         self.lin.chol.stats
     }
 }
 
+/// Book an exact Hessian found indefinite: try again next iteration after a first rejection,
+/// then back off (wait 1, 3, 7, … iterations): a solve whose exact Hessian stays indefinite
+/// wastes O(log iterations) tries.
+fn reject_exact(stats: &mut SolveStats, rejected_in_a_row: &mut u32, wait: &mut u64) {
+    stats.exact_rejections += 1;
+    *rejected_in_a_row += 1;
+    *wait = (1u64 << (*rejected_in_a_row - 1).min(20)) - 1;
+}
+
 impl Linear {
+    /// The Hessian triplets into the free-DOF CSC (no analysis); whether the pattern changed.
+    fn build(&mut self, triplets: &Triplets, free: &[u32], nf: usize) -> bool {
+        let t = Instant::now();
+        let changed = self.csc.assemble(triplets, free, nf);
+        self.csc_s += t.elapsed().as_secs_f64();
+        changed
+    }
+
+    /// A symbolic analysis covering the built matrix's pattern, unless the current one does.
+    fn ensure_analysed(&mut self) -> Result<(), LinearError> {
+        let t = Instant::now();
+        let covered = self.chol.is_analyzed()
+            && self.csc.widen(
+                &self.analysed_col_ptr,
+                &self.analysed_row_idx,
+                self.analysed_in_solve,
+            );
+        self.chol.stats.symbolic_s += t.elapsed().as_secs_f64();
+        if !covered {
+            self.chol.analyze(&self.csc)?;
+            self.analysed_col_ptr.clone_from(&self.csc.col_ptr);
+            self.analysed_row_idx.clone_from(&self.csc.row_idx);
+            self.analysed_in_solve = true;
+        }
+        Ok(())
+    }
+
     /// The Hessian triplets into the free-DOF CSC, and a new symbolic analysis if the sparsity
     /// pattern is not covered by the analysed one.
     fn assemble(
@@ -604,9 +757,7 @@ impl Linear {
         free: &[u32],
         nf: usize,
     ) -> Result<(), LinearError> {
-        let t = Instant::now();
-        let changed = self.csc.assemble(triplets, free, nf);
-        self.csc_s += t.elapsed().as_secs_f64();
+        let changed = self.build(triplets, free, nf);
         if changed || !self.chol.is_analyzed() {
             // A pattern the analysed one contains is factorised with it (explicit zeros). Within
             // a solve the next analysis covers the union of the patterns met so far, so a
@@ -615,20 +766,7 @@ impl Linear {
             // new solve's unknowns may mean other things, and patterns merged across solves
             // would grow without bound (a contained pattern is still reused: a correct, if
             // wider, structure).
-            let t = Instant::now();
-            let covered = self.chol.is_analyzed()
-                && self.csc.widen(
-                    &self.analysed_col_ptr,
-                    &self.analysed_row_idx,
-                    self.analysed_in_solve,
-                );
-            self.chol.stats.symbolic_s += t.elapsed().as_secs_f64();
-            if !covered {
-                self.chol.analyze(&self.csc)?;
-                self.analysed_col_ptr.clone_from(&self.csc.col_ptr);
-                self.analysed_row_idx.clone_from(&self.csc.row_idx);
-                self.analysed_in_solve = true;
-            }
+            self.ensure_analysed()?;
         }
         Ok(())
     }

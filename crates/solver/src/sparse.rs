@@ -119,12 +119,28 @@ pub struct UpperCsc {
     /// Builds that reused the previous structure (`scatter`) and full ones.
     pub(crate) reused: usize,
     pub(crate) full: usize,
+    /// Identifies the sparsity pattern: a new process-wide number whenever it changes.
+    pub(crate) pattern_id: u64,
+}
+
+/// Source of [`UpperCsc::pattern_id`] values (0 is never handed out).
+static PATTERN_IDS: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(1);
+
+fn new_pattern_id() -> u64 {
+    PATTERN_IDS.fetch_add(1, std::sync::atomic::Ordering::Relaxed)
 }
 
 impl UpperCsc {
     /// Number of rows (= columns).
     pub fn n(&self) -> usize {
         self.n
+    }
+
+    /// A number identifying the current sparsity pattern: it changes (process-wide unique)
+    /// whenever a build or [`UpperCsc::widen`] changes the pattern, so derived structures can
+    /// be kept while it stays the same. 0 before the first build.
+    pub fn pattern_id(&self) -> u64 {
+        self.pattern_id
     }
 
     /// Stored entries.
@@ -182,7 +198,15 @@ impl UpperCsc {
             self.reused += 1;
             return false;
         }
+        if n_free == self.n
+            && !self.pos.is_empty()
+            && free == self.last_free.as_slice()
+            && self.splice(t, free)
+        {
+            return false;
+        }
         self.full += 1;
+        self.pattern_id = new_pattern_id();
         std::mem::swap(&mut self.prev_col_ptr, &mut self.col_ptr);
         std::mem::swap(&mut self.prev_row_idx, &mut self.row_idx);
         let n = n_free;
@@ -295,6 +319,63 @@ impl UpperCsc {
 }
 
 impl UpperCsc {
+    /// A build whose triplets differ from the last full build's only in a middle stretch (the
+    /// same leading and trailing triplets — e.g. a Hessian whose contact terms changed between
+    /// the elastic blocks), and whose every new triplet lands on an entry of the current
+    /// pattern: the positions of the middle are looked up (binary search in their column), the
+    /// rest kept, and the values scattered in triplet order — so each entry sums its triplets in
+    /// the order a full build would, and entries no triplet reaches any more stay as explicit
+    /// zeros. Returns `false` (nothing changed) if some new triplet is not in the pattern.
+    fn splice(&mut self, t: &Triplets, free: &[u32]) -> bool {
+        let (old_len, new_len) = (self.last_rows.len(), t.rows.len());
+        if new_len >= u32::MAX as usize || self.pos.len() != old_len {
+            return false;
+        }
+        let same = |k_new: usize, k_old: usize| {
+            t.rows[k_new] == self.last_rows[k_old] && t.cols[k_new] == self.last_cols[k_old]
+        };
+        let short = old_len.min(new_len);
+        let mut pre = 0;
+        while pre < short && same(pre, pre) {
+            pre += 1;
+        }
+        let mut suf = 0;
+        while suf < short - pre && same(new_len - 1 - suf, old_len - 1 - suf) {
+            suf += 1;
+        }
+        self.remap.clear();
+        for k in pre..new_len - suf {
+            let (fr, fc) = (free[t.rows[k] as usize], free[t.cols[k] as usize]);
+            if fr == u32::MAX || fc == u32::MAX || fr > fc {
+                self.remap.push(u32::MAX);
+                continue;
+            }
+            let (a, b) = (self.col_ptr[fc as usize], self.col_ptr[fc as usize + 1]);
+            match self.row_idx[a..b].binary_search(&(fr as usize)) {
+                Ok(i) => self.remap.push((a + i) as u32),
+                Err(_) => return false,
+            }
+        }
+        // pos = old pos[..pre] ++ middle ++ old pos[old_len − suf..].
+        let (tail, m) = (old_len - suf, self.remap.len());
+        if new_len > old_len {
+            self.pos.resize(new_len, u32::MAX);
+        }
+        self.pos.copy_within(tail..tail + suf, pre + m);
+        self.pos.truncate(new_len);
+        self.pos[pre..pre + self.remap.len()].copy_from_slice(&self.remap);
+        self.last_rows.clone_from(&t.rows);
+        self.last_cols.clone_from(&t.cols);
+        self.values.iter_mut().for_each(|v| *v = 0.0);
+        for (k, &at) in self.pos.iter().enumerate() {
+            if at != u32::MAX {
+                self.values[at as usize] += t.vals[k];
+            }
+        }
+        self.reused += 1;
+        true
+    }
+
     /// Rewrite this matrix into a wider pattern `base` (upper CSC of the same size, rows sorted
     /// in each column, every diagonal present): the union of both patterns, the new entries
     /// explicit zeros. Returns whether this matrix's pattern was already contained in `base` —
@@ -380,6 +461,7 @@ impl UpperCsc {
         self.row_idx.extend(rows.iter().map(|&r| r as usize));
         self.values.clear();
         self.values.extend_from_slice(&vals);
+        self.pattern_id = new_pattern_id();
         for at in self.pos.iter_mut() {
             if *at != u32::MAX {
                 *at = self.remap[*at as usize];
@@ -480,10 +562,15 @@ mod tests {
         t.vals.iter_mut().for_each(|v| *v *= 2.0);
         assert!(!a.assemble(&t, &free, 2));
         assert_eq!(a.values(), &[3.0, 4.0, 6.0]);
-        // Remove the coupling: pattern changes; diagonals stay.
+        // Remove the coupling: the remaining triplets lie in the pattern, which is kept (the
+        // coupling an explicit zero); diagonals stay.
         t.clear();
         t.push(0, 0, 1.0);
-        assert!(a.assemble(&t, &free, 2));
+        assert!(!a.assemble(&t, &free, 2));
+        assert_eq!(a.row_idx(), &[0, 0, 1]);
+        assert_eq!(a.values(), &[1.0, 0.0, 0.0]);
+        // A new free map: built in full, the pattern changes.
+        assert!(a.assemble(&t, &[0, 1, u32::MAX], 2));
         assert_eq!(a.row_idx(), &[0, 1]);
         assert_eq!(a.values(), &[1.0, 0.0]);
     }
@@ -534,9 +621,9 @@ mod tests {
         assert_eq!(a.row_idx(), fresh.row_idx());
         let bits = |x: &[f64]| x.iter().map(|v| (v + 0.0).to_bits()).collect::<Vec<_>>();
         assert_eq!(bits(a.values()), bits(fresh.values()));
-        // More entries: a full build each time, and the pattern reported as changed exactly
-        // when it differs from the previous one (a duplicate of an existing entry: no; a new
-        // coupling between the first and last free DOF: yes).
+        // More entries, and the pattern reported as changed exactly when it differs from the
+        // previous one: a duplicate of an existing entry is spliced in (no), a new coupling
+        // between the first and last free DOF is built in full (yes).
         let (r0, c0) = (t.rows[0] as usize, t.cols[0] as usize);
         for (r, c, new_entry) in [(r0, c0, false), (0, n as usize - 1, true)] {
             let before = (a.col_ptr().to_vec(), a.row_idx().to_vec());
@@ -552,7 +639,7 @@ mod tests {
             );
             assert_eq!(bits(a.values()), bits(fresh.values()));
         }
-        assert_eq!((a.full, a.reused), (3, 1));
+        assert_eq!((a.full, a.reused), (2, 2));
     }
 
     fn dense(a: &UpperCsc) -> Vec<Vec<f64>> {
@@ -648,5 +735,88 @@ mod tests {
         let mut small = UpperCsc::default();
         small.assemble(&build(&[(0, 1, 1.0)]), &[0, 1], 2);
         assert!(!a.widen(small.col_ptr(), small.row_idx(), true));
+    }
+
+    /// Triplets that keep their leading and trailing runs and change in between (a contact set
+    /// that changes inside a Hessian): entries of the current pattern are found and the values
+    /// scattered, bitwise equal to a fresh build where both have entries, explicit zeros where
+    /// no triplet lands any more, the pattern (and its id) kept; a middle with an entry outside
+    /// the pattern, or a fixed DOF's, is built in full. Longer, shorter and empty middles.
+    #[test]
+    fn changed_middle_triplets_are_spliced_into_the_pattern() {
+        let mut seed = 4242u64;
+        let mut rnd = move || {
+            seed ^= seed << 13;
+            seed ^= seed >> 7;
+            seed ^= seed << 17;
+            seed
+        };
+        let n = 40usize;
+        let free: Vec<u32> = (0..n as u32).collect();
+        let mut val = move || (rnd() % 1000) as f64 / 7.0 - 60.0;
+        let push_sym = |t: &mut Triplets, r: usize, c: usize, v: f64| {
+            t.push(r, c, v);
+            t.push(c, r, v);
+        };
+        // Prefix: a band; middle: couplings (i, i + 5); suffix: a band again and the diagonal.
+        let make = |middle: &[(usize, usize)], val: &mut dyn FnMut() -> f64| {
+            let mut t = Triplets::default();
+            for i in 0..n - 1 {
+                push_sym(&mut t, i, i + 1, val());
+            }
+            for &(r, c) in middle {
+                push_sym(&mut t, r, c, val());
+            }
+            for i in 0..n - 2 {
+                push_sym(&mut t, i, i + 2, val());
+            }
+            for i in 0..n {
+                t.push(i, i, 100.0 + val());
+            }
+            t
+        };
+        let full: Vec<(usize, usize)> = (0..n - 5).map(|i| (i, i + 5)).collect();
+        let mut a = UpperCsc::default();
+        a.assemble(&make(&full, &mut val), &free, n);
+        let (pat, id) = (pattern(&a), a.pattern_id());
+        for middle in [
+            full.iter().copied().step_by(2).collect::<Vec<_>>(),
+            vec![],
+            full.iter()
+                .copied()
+                .chain(full.iter().copied().take(7))
+                .collect(),
+            vec![(3, 8), (3, 8), (12, 17)],
+        ] {
+            let t = make(&middle, &mut val);
+            let full_builds = a.full;
+            assert!(!a.assemble(&t, &free, n), "pattern unchanged");
+            assert_eq!(a.full, full_builds, "spliced, not rebuilt");
+            assert_eq!((pattern(&a), a.pattern_id()), (pat.clone(), id));
+            let mut fresh = UpperCsc::default();
+            fresh.assemble(&t, &free, n);
+            assert_eq!(dense(&a), dense(&fresh), "middle {middle:?}");
+            // Bitwise on the fresh build's entries, zeros elsewhere.
+            for (k, &(r, c)) in pattern(&a).iter().enumerate() {
+                let f = pattern(&fresh).iter().position(|&e| e == (r, c));
+                let want = f.map_or(0.0, |j| fresh.values()[j]);
+                assert_eq!(a.values()[k].to_bits(), want.to_bits(), "({r}, {c})");
+            }
+        }
+        // An entry outside the pattern: a full build, equal to a fresh one.
+        let t = make(&[(0, 30)], &mut val);
+        let full_builds = a.full;
+        assert!(a.assemble(&t, &free, n), "pattern changed");
+        assert_eq!(a.full, full_builds + 1);
+        let mut fresh = UpperCsc::default();
+        fresh.assemble(&t, &free, n);
+        assert_eq!((pattern(&a), dense(&a)), (pattern(&fresh), dense(&fresh)));
+        assert_ne!(a.pattern_id(), id);
+        // Another free map: never spliced.
+        let mut fixed = free.clone();
+        fixed[n - 1] = u32::MAX;
+        let full_builds = a.full;
+        a.assemble(&t, &fixed, n - 1);
+        assert_eq!(a.full, full_builds + 1);
     }
 }

@@ -2,8 +2,8 @@
 //! the time integrators against their closed-form discrete solutions, and failing solves.
 
 use femp_solver::{
-    HessianStrategy, Integrator, Newton, NewtonParams, Objective, Ordering, SolveError, SolveStats,
-    StepBound, StepLimit, Threads, Triplets,
+    HessianStrategy, Integrator, LinearSolver, Newton, NewtonParams, Objective, Ordering,
+    SolveError, SolveStats, StepBound, StepLimit, Threads, Triplets,
 };
 use nalgebra::{DMatrix, DVector};
 
@@ -323,6 +323,116 @@ fn indefinite_exact_hessian_falls_back_to_the_projected_one() {
     // iterations do not try (measured: 11 iterations, 3 rejected tries, 4 exact).
     let tries = stats.exact_rejections + stats.exact_iterations;
     assert!(tries < stats.iterations, "{stats:?}");
+    assert_hangs_in_equilibrium(&chain, &x);
+}
+
+/// A solve to `‖p‖∞ < 1e-12` with the given Hessian strategy and linear solver.
+fn solve_with(
+    obj: &mut impl Objective,
+    x: &mut [f64],
+    fixed: &[bool],
+    hessian: HessianStrategy,
+    linear: LinearSolver,
+) -> SolveStats {
+    Newton::new()
+        .minimize(
+            obj,
+            x,
+            fixed,
+            &NewtonParams {
+                tolerance: 1e-12,
+                hessian,
+                linear,
+                ..Default::default()
+            },
+        )
+        .unwrap()
+}
+
+/// A mass-dominated implicit step (the crumpled chain with a large inertia term): CG
+/// directions reach the Cholesky solve's minimiser with the same Newton iteration count, for
+/// projected and exact Hessians, without one factorisation or analysis; every exact Hessian is
+/// positive definite, and CG uses them all.
+#[test]
+fn pcg_directions_reach_the_cholesky_step() {
+    let n = 20;
+    for hessian in [
+        HessianStrategy::Projected,
+        HessianStrategy::ExactWhenDefinite,
+    ] {
+        let solve = |linear: LinearSolver| {
+            let (chain, x0, fixed) = crumpled_chain(n);
+            let mut obj = ChainStep {
+                chain,
+                inertia: 2.0e4,
+                x_hat: x0.iter().map(|v| v * 1.5).collect(),
+            };
+            let mut x = x0.clone();
+            let stats = solve_with(&mut obj, &mut x, &fixed, hessian, linear);
+            (x, stats)
+        };
+        let (xc, sc) = solve(LinearSolver::Cholesky);
+        let (xg, sg) = solve(LinearSolver::Pcg {
+            rtol: 1e-10,
+            max_iterations: 500,
+        });
+        for (a, b) in xc.iter().zip(&xg) {
+            assert!((a - b).abs() < 1e-10, "{hessian:?}: {a} vs {b}");
+        }
+        assert_eq!(
+            sg.iterations, sc.iterations,
+            "{hessian:?}: {sg:?} vs {sc:?}"
+        );
+        assert_eq!(sg.exact_iterations, sc.exact_iterations, "{hessian:?}");
+        assert!(sg.pcg_iterations >= sg.iterations, "{sg:?}");
+        assert_eq!(sg.pcg_fallbacks, 0, "{sg:?}");
+        assert_eq!((sg.symbolic_analyses, sg.numeric_s), (0, 0.0), "{sg:?}");
+        assert_eq!((sc.pcg_iterations, sc.pcg_fallbacks), (0, 0), "{sc:?}");
+    }
+}
+
+/// Without a mass term the crumpled chain's exact Hessian is indefinite: CG meets non-positive
+/// curvature (or does not converge) and the exact Hessian is rejected; with too few CG
+/// iterations allowed on the projected one, Cholesky delivers the direction. The solve reaches
+/// the static equilibrium either way.
+#[test]
+fn pcg_rejects_indefinite_hessians_and_falls_back_to_cholesky() {
+    let n = 12;
+    let (mut chain, mut x, fixed) = crumpled_chain(n);
+    let stats = solve_with(
+        &mut chain,
+        &mut x,
+        &fixed,
+        HessianStrategy::ExactWhenDefinite,
+        LinearSolver::Pcg {
+            rtol: 1e-10,
+            max_iterations: 1000,
+        },
+    );
+    assert!(stats.exact_rejections >= 1, "{stats:?}");
+    assert!(stats.exact_iterations >= 1, "{stats:?}");
+    assert_hangs_in_equilibrium(&chain, &x);
+
+    let (mut chain, mut x, fixed) = crumpled_chain(n);
+    let stats = solve_with(
+        &mut chain,
+        &mut x,
+        &fixed,
+        HessianStrategy::Projected,
+        LinearSolver::Pcg {
+            rtol: 1e-10,
+            max_iterations: 2,
+        },
+    );
+    // A 22-unknown chain without mass: two CG iterations do not reach 1e-10; after the first
+    // fallback the solve stays with Cholesky.
+    assert_eq!(stats.pcg_fallbacks, 1, "{stats:?}");
+    assert_eq!(stats.pcg_iterations, 2, "{stats:?}");
+    assert!(stats.iterations > 1, "{stats:?}");
+    assert!(
+        stats.symbolic_analyses >= 1 && stats.numeric_s > 0.0,
+        "{stats:?}"
+    );
     assert_hangs_in_equilibrium(&chain, &x);
 }
 
