@@ -460,7 +460,6 @@ impl<'a, const D: usize> StepObjective<'a, D> {
     /// exact one. Friction's lagged operator is PSD by construction and the same in both.
     fn build_hessian(&mut self, x: &[f64], h: &mut Triplets, exact: bool) {
         self.unpack(x);
-        let mut clock = Instant::now();
         let w = self.w;
         for d in 0..self.n_dofs {
             h.push(d, d, self.mass[d]);
@@ -472,72 +471,47 @@ impl<'a, const D: usize> StepObjective<'a, D> {
                 }
             }
         }
-        if let Some(m) = self.mpm {
-            let st = &m.stencils;
-            self.gh.reset(
-                self.n_grid,
-                st.stencil_axes(),
-                st.grid().kernel().nodes_per_axis(),
-            );
-            // Particle Hessians V_p Gᵀ A_p G (A_p the tangent, PSD-projected unless `exact`),
-            // particle groups in parallel, each block added into its fixed slot.
-            let nn = st.stencil_len();
-            let fq = &self.fq;
-            let (slots, pair_slot) = (self.gh.slots, &self.gh.pair_slot);
-            st.par_scatter_rows(&mut self.gh.rows, slots, |particles, rows| {
-                // Per group (hundreds of particles), not per particle. Particles come sorted by
-                // stencil base within a group, so the blocks of all particles sharing a stencil
-                // (one cell, ~particles-per-cell of them) are summed here and scattered once.
-                let mut gvec = vec![SVector::<f64, D>::zeros(); nn];
-                let mut ids = vec![0usize; nn];
-                let mut cell_ids = vec![usize::MAX; nn];
-                let mut acc = vec![SMatrix::<f64, D, D>::zeros(); nn * nn];
-                let mut flush = |cell_ids: &[usize], acc: &mut [SMatrix<f64, D, D>]| {
-                    for a in 0..nn {
-                        let row = rows.row(cell_ids[a]);
-                        for b in 0..nn {
-                            let block = if a <= b {
-                                acc[a * nn + b]
-                            } else {
-                                acc[b * nn + a].transpose()
-                            };
-                            let slot = &mut row[pair_slot[a * nn + b] as usize];
-                            slot.m += block;
-                            slot.nbr = cell_ids[b] as u32;
-                        }
-                    }
-                    acc.iter_mut().for_each(|b| *b = SMatrix::zeros());
-                };
-                for &p in particles {
-                    let p = p as usize;
-                    let material = &m.bodies[m.body[p] as usize].material;
-                    let t: Tangent<D> = if exact {
-                        material.tangent(&fq[p])
-                    } else {
-                        material.tangent_psd(&fq[p])
-                    };
-                    let ft = m.f[p].transpose();
-                    let mut k = 0;
-                    st.particle(p).for_each(|i, _, grad| {
-                        ids[k] = i;
-                        gvec[k] = ft * grad;
-                        k += 1;
-                    });
-                    // The stencil is determined by its first (base) node.
-                    if ids[0] != cell_ids[0] {
-                        if cell_ids[0] != usize::MAX {
-                            flush(&cell_ids, &mut acc);
-                        }
-                        cell_ids.copy_from_slice(&ids);
-                    }
-                    chain_hessian_add_upper(&t, &gvec, w * m.volume[p], &mut acc);
+        // The particles' blocks (parallel, into the grid Hessian) alongside the elements'
+        // triplets (into `h`) and the contact derivatives. The particle side works on `gh` and
+        // `fq` taken out of `self` meanwhile; the other side uses neither.
+        let mut gh = std::mem::replace(&mut self.gh, GridHessian::new());
+        let fq = std::mem::take(&mut self.fq);
+        let (mpm, n_grid) = (self.mpm, self.n_grid);
+        let (mpm_s, ()) = rayon::join(
+            || {
+                let clock = Instant::now();
+                if let Some(m) = mpm {
+                    particle_hessians(m, &fq, n_grid, w, exact, &mut gh);
                 }
-                if cell_ids[0] != usize::MAX {
-                    flush(&cell_ids, &mut acc);
-                }
-            });
+                clock.elapsed().as_secs_f64()
+            },
+            || self.element_hessians_and_contact_derivatives(h, exact),
+        );
+        self.gh = gh;
+        self.fq = fq;
+        self.timing.mpm_s += mpm_s;
+        // The contact terms' blocks (particle–particle ones into the grid Hessian).
+        let mut clock = Instant::now();
+        let cache = std::mem::take(&mut self.contact_cache.0);
+        for (k, [bar, fric]) in cache.iter().enumerate() {
+            self.scatter(k, bar, None, Some(h));
+            self.scatter(k, fric, None, Some(h));
         }
-        self.timing.mpm_s += lap(&mut clock);
+        self.contact_cache.0 = cache;
+        self.timing.contact_s += lap(&mut clock);
+        if self.mpm.is_some() {
+            let mut counts = std::mem::take(&mut self.emit_counts);
+            self.gh.emit(h, &mut counts);
+            self.emit_counts = counts;
+        }
+        self.timing.emit_s += lap(&mut clock);
+    }
+
+    /// The elements' Hessian triplets (appended to `h`) and the contact terms' derivatives
+    /// (unless the gradient at this state computed them); not the grid Hessian.
+    fn element_hessians_and_contact_derivatives(&mut self, h: &mut Triplets, exact: bool) {
+        let mut clock = Instant::now();
+        let w = self.w;
         for b in 0..self.fem.len() {
             if self.fem[b].fully_prescribed {
                 continue;
@@ -568,19 +542,7 @@ impl<'a, const D: usize> StepObjective<'a, D> {
             self.contact_gradient(&mut scratch, exact);
             self.contact_scratch = scratch;
         }
-        let cache = std::mem::take(&mut self.contact_cache.0);
-        for (k, [bar, fric]) in cache.iter().enumerate() {
-            self.scatter(k, bar, None, Some(h));
-            self.scatter(k, fric, None, Some(h));
-        }
-        self.contact_cache.0 = cache;
         self.timing.contact_s += lap(&mut clock);
-        if self.mpm.is_some() {
-            let mut counts = std::mem::take(&mut self.emit_counts);
-            self.gh.emit(h, &mut counts);
-            self.emit_counts = counts;
-        }
-        self.timing.emit_s += lap(&mut clock);
     }
 
     /// Recompute the lagged friction operator at `x` (Algorithm 1, lines 5 and 9).
@@ -772,6 +734,81 @@ fn push_block<const D: usize>(h: &mut Triplets, r: usize, c: usize, b: &SMatrix<
             h.push(r + i, c + j, b[(i, j)]);
         }
     }
+}
+
+/// The particles' Hessian blocks `V_p Gᵀ A_p G` (`A_p` the tangent, PSD-projected unless
+/// `exact`) into the grid Hessian, particle groups in parallel, each block added into its fixed
+/// slot.
+fn particle_hessians<const D: usize>(
+    m: &Mpm<D>,
+    fq: &[SMatrix<f64, D, D>],
+    n_grid: usize,
+    w: f64,
+    exact: bool,
+    gh: &mut GridHessian<D>,
+) {
+    let st = &m.stencils;
+    gh.reset(
+        n_grid,
+        st.stencil_axes(),
+        st.grid().kernel().nodes_per_axis(),
+    );
+    // Particle Hessians V_p Gᵀ A_p G (A_p the tangent, PSD-projected unless `exact`),
+    // particle groups in parallel, each block added into its fixed slot.
+    let nn = st.stencil_len();
+    let (slots, pair_slot) = (gh.slots, &gh.pair_slot);
+    st.par_scatter_rows(&mut gh.rows, slots, |particles, rows| {
+        // Per group (hundreds of particles), not per particle. Particles come sorted by
+        // stencil base within a group, so the blocks of all particles sharing a stencil
+        // (one cell, ~particles-per-cell of them) are summed here and scattered once.
+        let mut gvec = vec![SVector::<f64, D>::zeros(); nn];
+        let mut ids = vec![0usize; nn];
+        let mut cell_ids = vec![usize::MAX; nn];
+        let mut acc = vec![SMatrix::<f64, D, D>::zeros(); nn * nn];
+        let mut flush = |cell_ids: &[usize], acc: &mut [SMatrix<f64, D, D>]| {
+            for a in 0..nn {
+                let row = rows.row(cell_ids[a]);
+                for b in 0..nn {
+                    let block = if a <= b {
+                        acc[a * nn + b]
+                    } else {
+                        acc[b * nn + a].transpose()
+                    };
+                    let slot = &mut row[pair_slot[a * nn + b] as usize];
+                    slot.m += block;
+                    slot.nbr = cell_ids[b] as u32;
+                }
+            }
+            acc.iter_mut().for_each(|b| *b = SMatrix::zeros());
+        };
+        for &p in particles {
+            let p = p as usize;
+            let material = &m.bodies[m.body[p] as usize].material;
+            let t: Tangent<D> = if exact {
+                material.tangent(&fq[p])
+            } else {
+                material.tangent_psd(&fq[p])
+            };
+            let ft = m.f[p].transpose();
+            let mut k = 0;
+            st.particle(p).for_each(|i, _, grad| {
+                ids[k] = i;
+                gvec[k] = ft * grad;
+                k += 1;
+            });
+            // The stencil is determined by its first (base) node.
+            if ids[0] != cell_ids[0] {
+                if cell_ids[0] != usize::MAX {
+                    flush(&cell_ids, &mut acc);
+                }
+                cell_ids.copy_from_slice(&ids);
+            }
+            chain_hessian_add_upper(&t, &gvec, w * m.volume[p], &mut acc);
+        }
+        if cell_ids[0] != usize::MAX {
+            flush(&cell_ids, &mut acc);
+        }
+    });
 }
 
 impl<const D: usize> Objective for StepObjective<'_, D> {

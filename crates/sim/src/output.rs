@@ -48,6 +48,10 @@ pub struct Summary {
     pub exact_hessian_iterations: usize,
     /// Exact Hessians found indefinite (those iterations used the projected one).
     pub exact_hessian_rejections: usize,
+    /// Conjugate-gradient iterations (`solver.linear: "pcg"`).
+    pub pcg_iterations: usize,
+    /// Newton directions CG did not deliver and Cholesky did (`solver.linear: "pcg"`).
+    pub pcg_fallbacks: usize,
     /// Steps whose friction iteration hit its limit.
     pub friction_unconverged_steps: usize,
     /// Largest penetration count in any step (BFEMP: must be 0).
@@ -88,6 +92,8 @@ pub struct RunTiming {
     pub numeric_s: f64,
     /// Newton: triangular solves.
     pub solve_s: f64,
+    /// Newton: conjugate gradients (`solver.linear: "pcg"`).
+    pub pcg_s: f64,
     /// Newton: the filtered line search.
     pub line_search_s: f64,
     /// The objective's parts.

@@ -155,6 +155,8 @@ pub fn run_with<const D: usize>(
                 summary.friction_iterations += report.friction_iterations;
                 summary.exact_hessian_iterations += report.stats.exact_iterations;
                 summary.exact_hessian_rejections += report.stats.exact_rejections;
+                summary.pcg_iterations += report.stats.pcg_iterations;
+                summary.pcg_fallbacks += report.stats.pcg_fallbacks;
                 summary.friction_unconverged_steps += usize::from(!report.friction_converged);
                 summary.max_penetrations = summary.max_penetrations.max(m.penetrations);
                 let s = &report.stats;
@@ -165,6 +167,7 @@ pub fn run_with<const D: usize>(
                 tm.symbolic_s += s.symbolic_s;
                 tm.numeric_s += s.numeric_s;
                 tm.solve_s += s.solve_s;
+                tm.pcg_s += s.pcg_s;
                 tm.line_search_s += s.line_search_s;
                 tm.objective.add(&report.objective);
                 if !opts.no_frames && world.time + 1e-12 >= next_frame {

@@ -3,13 +3,13 @@
 //! grid-to-particle and advection.
 
 use femp_kernels::transfer;
-use femp_solver::{HessianStrategy, NewtonParams, Ordering, SolveStats, Threads};
+use femp_solver::{HessianStrategy, LinearSolver, NewtonParams, Ordering, SolveStats, Threads};
 use nalgebra::{SMatrix, SVector};
 
 use crate::error::SimError;
 use crate::objective::{Penalty, StepObjective};
 use crate::scene::BoundaryCondition;
-use crate::scene::spec::ProjectionSpec;
+use crate::scene::spec::{LinearSpec, ProjectionSpec};
 use crate::world::{Transfer, World};
 
 /// What a step did.
@@ -48,6 +48,9 @@ fn add_stats(acc: &mut SolveStats, s: &SolveStats) {
     acc.exact_iterations += s.exact_iterations;
     acc.exact_rejections += s.exact_rejections;
     acc.symbolic_analyses += s.symbolic_analyses;
+    acc.pcg_iterations += s.pcg_iterations;
+    acc.pcg_fallbacks += s.pcg_fallbacks;
+    acc.pcg_s += s.pcg_s;
     acc.assembly_s += s.assembly_s;
     acc.symbolic_s += s.symbolic_s;
     acc.numeric_s += s.numeric_s;
@@ -120,6 +123,13 @@ impl<const D: usize> World<D> {
             hessian: match self.scene.spec.solver.projection {
                 ProjectionSpec::Always => HessianStrategy::Projected,
                 ProjectionSpec::WhenIndefinite => HessianStrategy::ExactWhenDefinite,
+            },
+            linear: match self.scene.spec.solver.linear {
+                LinearSpec::Cholesky => LinearSolver::Cholesky,
+                LinearSpec::Pcg => LinearSolver::Pcg {
+                    rtol: self.scene.spec.solver.pcg_rtol,
+                    max_iterations: self.scene.spec.solver.pcg_max_iterations,
+                },
             },
             ..Default::default()
         };

@@ -92,6 +92,10 @@ fn unknown_fields_are_named_with_their_path() {
             "`always` or `when_indefinite`",
         ],
     );
+
+    let mut v = base();
+    v["solver"] = json!({ "linear": "lu" });
+    expect_error(&v, &["solver.linear", "lu", "`cholesky` or `pcg`"]);
 }
 
 #[test]
@@ -135,6 +139,14 @@ fn non_physical_values_are_named() {
     let mut v = base();
     v["contact"]["kappa"] = json!(0.0);
     expect_error(&v, &["contact.kappa", "must be positive"]);
+
+    let mut v = base();
+    v["solver"] = json!({ "linear": "pcg", "pcg_rtol": 1.0 });
+    expect_error(&v, &["solver.pcg_rtol: 1 must be in (0, 1)"]);
+
+    let mut v = base();
+    v["solver"] = json!({ "linear": "pcg", "pcg_max_iterations": 0 });
+    expect_error(&v, &["solver.pcg_max_iterations", "must be at least 1"]);
 
     let mut v = base();
     v["contact"]["friction"] = json!(-0.1);

@@ -147,38 +147,73 @@ fn contact_force_carries_the_weight_at_rest() {
 /// A free MPM disk and a free FEM disk collide head-on without gravity: linear momentum is
 /// conserved through the contact to the solver tolerance (the barrier is translation
 /// invariant and the transfers conserve momentum), and they bounce apart.
+/// A free MPM disk and a free FEM disk collide (no gravity): linear momentum is conserved to
+/// the Newton tolerance through the collision — with Cholesky directions, and with CG ones
+/// (`solver.linear: "pcg"`, exact Hessians when definite), which give the same steps.
 #[test]
 fn mpm_fem_collision_conserves_linear_momentum() {
-    let json = r#"{
+    let scene = |solver: &str| {
+        format!(
+            r#"{{
   "dimension": 2,
-  "time": { "dt": 0.002, "duration": 0.12 },
-  "solver": { "tolerance": 1e-9, "max_newton_iterations": 200 },
-  "mpm": { "grid_spacing": 0.05 },
+  "time": {{ "dt": 0.002, "duration": 0.12 }},
+  "solver": {{ "tolerance": 1e-9, "max_newton_iterations": 200{solver} }},
+  "mpm": {{ "grid_spacing": 0.05 }},
   "bodies": [
-    { "kind": "mpm", "name": "left", "shape": { "disk": { "center": [-0.32, 0.0], "radius": 0.3 } },
-      "material": { "E": 1e6, "nu": 0.3, "rho": 1000 }, "velocity": [2.0, 0.1] },
-    { "kind": "fem", "name": "right", "mesh": { "disk": { "center": [0.32, 0.05], "radius": 0.3, "rings": 6 } },
-      "material": { "E": 1e6, "nu": 0.3, "rho": 1000 }, "velocity": [-2.0, 0.0] }
+    {{ "kind": "mpm", "name": "left", "shape": {{ "disk": {{ "center": [-0.32, 0.0], "radius": 0.3 }} }},
+      "material": {{ "E": 1e6, "nu": 0.3, "rho": 1000 }}, "velocity": [2.0, 0.1] }},
+    {{ "kind": "fem", "name": "right", "mesh": {{ "disk": {{ "center": [0.32, 0.05], "radius": 0.3, "rings": 6 }} }},
+      "material": {{ "E": 1e6, "nu": 0.3, "rho": 1000 }}, "velocity": [-2.0, 0.0] }}
   ],
-  "contact": { "dhat": 0.005, "kappa": 1e6 }
-}"#;
-    let r = run_scene(json);
-    let p0 = r.metrics[0].momentum;
-    let scale = r.metrics[0].kinetic_energy.sqrt() * 30.0; // ~ Σ m |v|
-    let mut touched = false;
-    for m in &r.metrics {
-        touched |= m.barrier_energy > 0.0;
-        for a in 0..2 {
-            assert!(
-                (m.momentum[a] - p0[a]).abs() <= 1e-6 * scale,
-                "step {}: momentum {:?} vs {:?}",
-                m.step,
-                m.momentum,
-                p0
-            );
+  "contact": {{ "dhat": 0.005, "kappa": 1e6 }}
+}}"#
+        )
+    };
+    let direct = run_scene(&scene(""));
+    let cg = run_scene(&scene(
+        r#", "linear": "pcg", "projection": "when_indefinite""#,
+    ));
+    assert_eq!(direct.summary.pcg_iterations, 0);
+    assert!(
+        cg.summary.pcg_iterations >= cg.summary.newton_iterations,
+        "{:?}",
+        cg.summary
+    );
+    for r in [&direct, &cg] {
+        let p0 = r.metrics[0].momentum;
+        let scale = r.metrics[0].kinetic_energy.sqrt() * 30.0; // ~ Σ m |v|
+        let mut touched = false;
+        for m in &r.metrics {
+            touched |= m.barrier_energy > 0.0;
+            for a in 0..2 {
+                assert!(
+                    (m.momentum[a] - p0[a]).abs() <= 1e-6 * scale,
+                    "step {}: momentum {:?} vs {:?}",
+                    m.step,
+                    m.momentum,
+                    p0
+                );
+            }
         }
+        assert!(touched, "the disks never came into contact");
     }
-    assert!(touched, "the disks never came into contact");
+    // The same steps: both solves stop at ‖p‖∞/Δt < 1e-9 m/s.
+    assert_eq!(direct.metrics.len(), cg.metrics.len());
+    for (a, b) in direct.metrics.iter().zip(&cg.metrics) {
+        let de = (a.kinetic_energy - b.kinetic_energy).abs() / a.kinetic_energy;
+        assert!(
+            de < 1e-6,
+            "step {}: kinetic energies differ by {de:e}",
+            a.step
+        );
+        assert!(
+            (a.barrier_energy - b.barrier_energy).abs() <= 1e-6 * a.kinetic_energy,
+            "step {}: barrier energies {} vs {}",
+            a.step,
+            a.barrier_energy,
+            b.barrier_energy
+        );
+    }
 }
 
 fn slope(mu: f64, dim: usize) -> String {

@@ -241,6 +241,15 @@ pub fn validate(s: &SceneSpec) -> Result<(), SimError> {
             "must be at least 1",
         ));
     }
+    if !(s.solver.pcg_rtol > 0.0 && s.solver.pcg_rtol < 1.0) {
+        return Err(invalid(
+            "solver.pcg_rtol",
+            format!("{} must be in (0, 1)", s.solver.pcg_rtol),
+        ));
+    }
+    if s.solver.pcg_max_iterations == 0 {
+        return Err(invalid("solver.pcg_max_iterations", "must be at least 1"));
+    }
     if s.bodies.is_empty() {
         return Err(invalid("bodies", "the scene has no bodies"));
     }

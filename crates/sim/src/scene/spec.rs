@@ -205,6 +205,23 @@ pub struct SolverSpec {
     pub max_friction_iterations: usize,
     /// When the Newton iterations PSD-project element, particle and barrier Hessians.
     pub projection: ProjectionSpec,
+    /// How the Newton direction is solved for.
+    pub linear: LinearSpec,
+    /// With `linear: "pcg"`: relative reduction of CG's preconditioned residual.
+    pub pcg_rtol: f64,
+    /// With `linear: "pcg"`: CG iterations before falling back to Cholesky.
+    pub pcg_max_iterations: usize,
+}
+
+/// The Newton direction's linear solver (`solver.linear`).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum LinearSpec {
+    /// Sparse Cholesky of every Hessian.
+    #[default]
+    Cholesky,
+    /// Jacobi-preconditioned conjugate gradients, Cholesky when CG cannot.
+    Pcg,
 }
 
 /// When the Newton iterations PSD-project the Hessian (`solver.projection`).
@@ -226,6 +243,9 @@ impl Default for SolverSpec {
             max_newton_iterations: 100,
             max_friction_iterations: 20,
             projection: ProjectionSpec::Always,
+            linear: LinearSpec::Cholesky,
+            pcg_rtol: 1e-6,
+            pcg_max_iterations: 200,
         }
     }
 }
