@@ -689,20 +689,38 @@ impl<'a, const D: usize> StepObjective<'a, D> {
             let r = p.n.dot(&Self::v(x, p.node)) - p.target;
             e += 0.5 * p.k * r * r;
         }
-        // MPM elasticity.
-        if let Some(m) = self.mpm {
-            let fq = &self.fq;
-            let el: f64 = (0..m.x.len())
-                .into_par_iter()
-                .with_min_len(1024)
-                .map(|p| m.volume[p] * m.bodies[m.body[p] as usize].material.energy_density(&fq[p]))
-                .sum();
-            if !el.is_finite() {
-                return f64::INFINITY;
-            }
-            e += w * el;
+        // MPM elasticity (parallel) alongside the elements' and the contact terms' energies; the
+        // particle side works on `fq` taken out of `self` meanwhile (the other side does not
+        // use it).
+        let fq = std::mem::take(&mut self.fq);
+        let mpm = self.mpm;
+        let (el, rest) = rayon::join(
+            || {
+                mpm.map_or(0.0, |m| {
+                    (0..m.x.len())
+                        .into_par_iter()
+                        .with_min_len(1024)
+                        .map(|p| {
+                            m.volume[p]
+                                * m.bodies[m.body[p] as usize].material.energy_density(&fq[p])
+                        })
+                        .sum::<f64>()
+                })
+            },
+            || self.element_and_contact_energy(),
+        );
+        self.fq = fq;
+        if !el.is_finite() {
+            return f64::INFINITY;
         }
-        // FEM elasticity.
+        e + w * el + rest
+    }
+
+    /// The elements' elastic energy and the contact and friction energies (times the
+    /// integrator weight); `+∞` if an element is inverted or a contact is infeasible.
+    fn element_and_contact_energy(&mut self) -> f64 {
+        let w = self.w;
+        let mut e = 0.0;
         for (b, body) in self.fem.iter().enumerate() {
             if body.fully_prescribed {
                 continue;
@@ -712,7 +730,6 @@ impl<'a, const D: usize> StepObjective<'a, D> {
                 _ => return f64::INFINITY,
             }
         }
-        // Contact and friction.
         for k in 0..self.pairs.len() {
             if self.collect(k).is_err() {
                 return f64::INFINITY;
