@@ -241,18 +241,7 @@ fn solve_tight(
     fixed: &[bool],
     hessian: HessianStrategy,
 ) -> SolveStats {
-    Newton::new()
-        .minimize(
-            obj,
-            x,
-            fixed,
-            &NewtonParams {
-                tolerance: 1e-12,
-                hessian,
-                ..Default::default()
-            },
-        )
-        .unwrap()
+    solve_with(obj, x, fixed, hessian, LinearSolver::Cholesky)
 }
 
 fn crumpled_chain(n: usize) -> (Chain, Vec<f64>, Vec<bool>) {
