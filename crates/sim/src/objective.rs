@@ -18,6 +18,7 @@ use femp_kernels::transfer;
 use femp_solver::{Objective, StepBound, StepLimit, Triplets};
 use nalgebra::{SMatrix, SVector};
 use rayon::prelude::*;
+use std::borrow::Cow;
 use std::time::Instant;
 
 use crate::world::{FemBody, Mpm, Pair, Points};
@@ -348,27 +349,11 @@ impl<'a, const D: usize> StepObjective<'a, D> {
         }
     }
 
-    /// Positions of a pair's points at the unpacked state.
-    fn points(&self, pair: &Pair<D>) -> Vec<SVector<f64, D>> {
-        match &pair.points {
-            Points::Mpm { range } => self.xq[range.0..range.1].to_vec(),
-            Points::Fem { body } => self.fem[*body]
-                .boundary
-                .vertices()
-                .iter()
-                .map(|&v| self.fem_x[*body][v])
-                .collect(),
-        }
-    }
-
-    fn weights(&self, pair: &Pair<D>) -> Vec<f64> {
-        match &pair.points {
-            Points::Mpm { range } => self
-                .mpm
-                .map(|m| m.weight[range.0..range.1].to_vec())
-                .unwrap_or_default(),
-            Points::Fem { body } => self.fem[*body].vertex_weight.clone(),
-        }
+    /// Positions of a pair's points at the unpacked state: the particles' slice itself (no
+    /// copy — this runs at every energy, gradient and CCD evaluation), or the FEM boundary
+    /// vertices gathered.
+    fn points(&self, pair: &Pair<D>) -> Cow<'_, [SVector<f64, D>]> {
+        points_of(&self.xq, self.fem, &self.fem_x, pair)
     }
 
     /// Displacements over the step of a pair's points and boundary (for friction).
@@ -397,8 +382,8 @@ impl<'a, const D: usize> StepObjective<'a, D> {
     /// Active contact terms of a pair at the unpacked state (into `self.terms`).
     fn collect(&mut self, k: usize) -> Result<(), femp_contact::ContactError> {
         let pair = &self.pairs[k];
-        let pts = self.points(pair);
-        let w = self.weights(pair);
+        let pts = points_of(&self.xq, self.fem, &self.fem_x, pair);
+        let w = weights_of(self.mpm, self.fem, pair);
         let bx = &self.fem_x[pair.facets_of];
         let facets = &self.fem[pair.facets_of].facets;
         broad_phase::candidates_within(
@@ -409,7 +394,7 @@ impl<'a, const D: usize> StepObjective<'a, D> {
             &mut self.cands,
         );
         pair.potential
-            .collect_terms(&pts, &w, bx, &self.cands, &mut self.terms)
+            .collect_terms(&pts, w, bx, &self.cands, &mut self.terms)
     }
 
     /// Add the contact (barrier and lagged friction) gradient at the unpacked state into `g`,
@@ -744,6 +729,38 @@ impl<'a, const D: usize> StepObjective<'a, D> {
     }
 }
 
+/// See [`StepObjective::points`].
+fn points_of<'s, const D: usize>(
+    xq: &'s [SVector<f64, D>],
+    fem: &[FemBody<D>],
+    fem_x: &[Vec<SVector<f64, D>>],
+    pair: &Pair<D>,
+) -> Cow<'s, [SVector<f64, D>]> {
+    match &pair.points {
+        Points::Mpm { range } => Cow::Borrowed(&xq[range.0..range.1]),
+        Points::Fem { body } => Cow::Owned(
+            fem[*body]
+                .boundary
+                .vertices()
+                .iter()
+                .map(|&v| fem_x[*body][v])
+                .collect(),
+        ),
+    }
+}
+
+/// The weights of a pair's points (borrowed, never copied).
+fn weights_of<'a, const D: usize>(
+    mpm: Option<&'a Mpm<D>>,
+    fem: &'a [FemBody<D>],
+    pair: &Pair<D>,
+) -> &'a [f64] {
+    match &pair.points {
+        Points::Mpm { range } => mpm.map_or(&[][..], |m| &m.weight[range.0..range.1]),
+        Points::Fem { body } => &fem[*body].vertex_weight,
+    }
+}
+
 #[inline]
 fn push_block<const D: usize>(h: &mut Triplets, r: usize, c: usize, b: &SMatrix<f64, D, D>) {
     for i in 0..D {
@@ -1030,16 +1047,18 @@ impl<const D: usize> StepObjective<'_, D> {
         // CCD of every pair along the full step.
         for pair in self.pairs {
             let x0 = self.points(pair);
-            let dx: Vec<SVector<f64, D>> = match &pair.points {
-                Points::Mpm { range } => dq[range.0..range.1].to_vec(),
+            let dx: Cow<'_, [SVector<f64, D>]> = match &pair.points {
+                Points::Mpm { range } => Cow::Borrowed(&dq[range.0..range.1]),
                 Points::Fem { body } => {
                     let off = self.fem_offset[*body];
-                    self.fem[*body]
-                        .boundary
-                        .vertices()
-                        .iter()
-                        .map(|&v| SVector::from_column_slice(&p[off + v * D..off + v * D + D]))
-                        .collect()
+                    Cow::Owned(
+                        self.fem[*body]
+                            .boundary
+                            .vertices()
+                            .iter()
+                            .map(|&v| SVector::from_column_slice(&p[off + v * D..off + v * D + D]))
+                            .collect(),
+                    )
                 }
             };
             let fb = pair.facets_of;
@@ -1048,7 +1067,7 @@ impl<const D: usize> StepObjective<'_, D> {
             let bdx: Vec<SVector<f64, D>> = (0..bx.len())
                 .map(|v| SVector::from_column_slice(&p[off + v * D..off + v * D + D]))
                 .collect();
-            let x1: Vec<_> = x0.iter().zip(&dx).map(|(a, b)| a + b).collect();
+            let x1: Vec<_> = x0.iter().zip(dx.iter()).map(|(a, b)| a + b).collect();
             let b1: Vec<_> = bx.iter().zip(&bdx).map(|(a, b)| a + b).collect();
             let mut cands = Candidates::default();
             broad_phase::candidates_swept(&x0, &x1, bx, &b1, &self.fem[fb].facets, 0.0, &mut cands);

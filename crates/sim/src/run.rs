@@ -144,6 +144,7 @@ pub fn run_with<const D: usize>(
                 m.backtracks = report.stats.backtracks;
                 m.ccd_limited = report.stats.limited_by_ccd;
                 m.exact_hessians = report.stats.exact_iterations;
+                m.pcg_iterations = report.stats.pcg_iterations;
                 m.wall_s = t0.elapsed().as_secs_f64();
                 if report.contact_terms > 0 {
                     m.min_distance = m.min_distance.min(report.min_distance);

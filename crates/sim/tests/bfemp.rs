@@ -174,10 +174,19 @@ fn mpm_fem_collision_conserves_linear_momentum() {
         r#", "linear": "pcg", "projection": "when_indefinite""#,
     ));
     assert_eq!(direct.summary.pcg_iterations, 0);
+    assert!(direct.metrics.iter().all(|m| m.pcg_iterations == 0));
     assert!(
         cg.summary.pcg_iterations >= cg.summary.newton_iterations,
         "{:?}",
         cg.summary
+    );
+    // The per-step column adds up to the run's total, and every step that iterated used CG.
+    let per_step: usize = cg.metrics.iter().map(|m| m.pcg_iterations).sum();
+    assert_eq!(per_step, cg.summary.pcg_iterations);
+    assert!(
+        cg.metrics
+            .iter()
+            .all(|m| (m.newton_iterations == 0) == (m.pcg_iterations == 0))
     );
     for r in [&direct, &cg] {
         let p0 = r.metrics[0].momentum;
