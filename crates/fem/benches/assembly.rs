@@ -1,11 +1,14 @@
 //! Elastic assembly throughput (energy + gradient + PSD Hessian triplets), elements per second,
-//! 2D and 3D, 1 and 2 threads; and the PSD projection of one tangent, analytic vs eigen.
+//! 2D and 3D, 1 and 2 threads; the PSD projection of one tangent, analytic vs eigen; and the
+//! MPM particle Hessian kernel (`chain_hessian_add_upper` over a quadratic B-spline stencil of
+//! 3^D nodes, the exact tangent per particle, as in the BFEMP grid Hessian).
 //!
-//! Run: `cargo bench -p femp-fem --bench assembly`.
+//! Run: `cargo bench -p femp-fem --bench assembly` (only the particle kernel:
+//! `cargo bench -p femp-fem --bench assembly -- particle_hessian`).
 
 use criterion::{BenchmarkId, Criterion, Throughput, criterion_group, criterion_main};
 use femp_fem::mesh::generate;
-use femp_fem::{ElasticBody, Hyperelastic, Mesh, NeoHookean, Triplet};
+use femp_fem::{ElasticBody, Hyperelastic, Mesh, NeoHookean, Triplet, chain_hessian_add_upper};
 use nalgebra::{SMatrix, SVector, Vector2, Vector3};
 use std::hint::black_box;
 
@@ -85,6 +88,42 @@ fn projection<const D: usize>(c: &mut Criterion) {
     group.finish();
 }
 
+/// 1 000 particles of one stencil: per particle its exact tangent and its `3^D × 3^D` blocks
+/// added into one accumulator (what the grid Hessian does per cell).
+fn particle_chain<const D: usize>(c: &mut Criterion) {
+    const PARTICLES: usize = 1000;
+    let mat = NeoHookean::from_young_poisson(1e8, 0.2).unwrap();
+    let nn = 3usize.pow(D as u32);
+    let fs: Vec<SMatrix<f64, D, D>> = (0..PARTICLES)
+        .map(|p| {
+            SMatrix::<f64, D, D>::from_fn(|a, b| {
+                let s = ((p * 7 + a * 3 + b) as f64 * 0.618).sin();
+                f64::from(u8::from(a == b)) + 0.05 * s
+            })
+        })
+        .collect();
+    let grads: Vec<Vec<SVector<f64, D>>> = (0..PARTICLES)
+        .map(|p| {
+            (0..nn)
+                .map(|k| SVector::<f64, D>::from_fn(|a, _| ((p + 11 * k + a) as f64).cos()))
+                .collect()
+        })
+        .collect();
+    let mut acc = vec![SMatrix::<f64, D, D>::zeros(); nn * nn];
+    let mut group = c.benchmark_group(format!("particle_hessian_{D}d"));
+    group.throughput(Throughput::Elements(PARTICLES as u64));
+    group.bench_function("tangent_and_chain", |b| {
+        b.iter(|| {
+            for (f, g) in fs.iter().zip(&grads) {
+                let t = Hyperelastic::<D>::tangent(&mat, f);
+                chain_hessian_add_upper(&t, g, 1e-3, &mut acc);
+            }
+            black_box(&acc);
+        })
+    });
+    group.finish();
+}
+
 fn benches(c: &mut Criterion) {
     let m2 = generate::rectangle(Vector2::zeros(), Vector2::new(2.0, 2.0), 200, 200).unwrap();
     bench_mesh(c, "2d_80k_triangles", &m2);
@@ -92,6 +131,8 @@ fn benches(c: &mut Criterion) {
     bench_mesh(c, "3d_48k_tetrahedra", &m3);
     projection::<2>(c);
     projection::<3>(c);
+    particle_chain::<2>(c);
+    particle_chain::<3>(c);
 }
 
 criterion_group!(assembly, benches);
