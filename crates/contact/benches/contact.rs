@@ -112,7 +112,27 @@ fn bench_ccd(c: &mut Criterion) {
     group.finish();
 }
 
+/// The broad phase alone: `candidates_within` at the barrier distance, on the whole scene and on
+/// its first 1 000 particles (many facets, few particles: a fine FEM shell on a coarse MPM body).
+fn bench_broad_phase<const D: usize>(c: &mut Criterion, name: &str, (v, f, p): scenes::Scene<D>) {
+    let mut group = c.benchmark_group(format!("broad_phase_{name}"));
+    group.sample_size(10);
+    let mut cands = Candidates::default();
+    for n in [p.len(), 1000] {
+        group.throughput(Throughput::Elements(n as u64));
+        group.bench_with_input(BenchmarkId::new("particles", n), &n, |b, &n| {
+            b.iter(|| {
+                broad_phase::candidates_within(&p[..n], &v, &f, DHAT, &mut cands);
+                black_box(cands.num_pairs())
+            })
+        });
+    }
+    group.finish();
+}
+
 fn benches(c: &mut Criterion) {
+    bench_broad_phase::<2>(c, "2d_10k_edges", scene2());
+    bench_broad_phase::<3>(c, "3d_9800_triangles", scene3());
     bench_potential::<2>(c, "2d_100k_particles_10k_edges", scene2());
     bench_potential::<3>(c, "3d_100k_particles_9800_triangles", scene3());
     bench_ccd(c);

@@ -1,9 +1,12 @@
 //! Broad phase: which boundary facets each particle must be tested against.
 //!
 //! A uniform spatial hash over facet bounding boxes (inflated by the query distance), built once
-//! per query: facets are binned into the cells their box overlaps, the `(cell, facet)` pairs
-//! sorted, and each particle looks up the cells its own box overlaps. Cost grows linearly with
-//! the number of particles and facets (not their product); memory with the occupied cells.
+//! per query: facets are binned into the cells their box overlaps (a counting sort by cell, the
+//! cells numbered densely over the facets' bounding box, or through a hash map when that box is
+//! mostly empty), and each particle looks up the cells its own box overlaps, taking each facet
+//! from the lowest cell it shares with the particle only (so no duplicates to remove). Cost
+//! grows linearly with the number of particles and facets (not their product); memory with the
+//! occupied cells.
 //! Written here rather than taken from parry because one generic source serves 2D and 3D
 //! (parry splits them into two crates with different math types).
 //!
@@ -98,11 +101,7 @@ pub fn candidates_within<const D: usize>(
         .collect();
     let fboxes: Vec<Aabb<D>> = facets
         .iter()
-        .map(|f| {
-            let pts: Vec<&SVector<f64, D>> =
-                f[..D].iter().map(|&v| &boundary[v as usize]).collect();
-            Aabb::of(&pts)
-        })
+        .map(|f| facet_box(f, boundary, None))
         .collect();
     query(&pboxes, &fboxes, out);
 }
@@ -125,18 +124,176 @@ pub fn candidates_swept<const D: usize>(
         .collect();
     let fboxes: Vec<Aabb<D>> = facets
         .iter()
-        .map(|f| {
-            let mut pts: Vec<&SVector<f64, D>> =
-                f[..D].iter().map(|&v| &boundary0[v as usize]).collect();
-            pts.extend(f[..D].iter().map(|&v| &boundary1[v as usize]));
-            Aabb::of(&pts)
-        })
+        .map(|f| facet_box(f, boundary0, Some(boundary1)))
         .collect();
     query(&pboxes, &fboxes, out);
 }
 
+/// The box of a facet's `D` vertices in `x0` (and `x1`, if given).
+#[inline]
+fn facet_box<const D: usize>(
+    f: &[u32; 3],
+    x0: &[SVector<f64, D>],
+    x1: Option<&[SVector<f64, D>]>,
+) -> Aabb<D> {
+    let mut b = Aabb {
+        lo: x0[f[0] as usize],
+        hi: x0[f[0] as usize],
+    };
+    for &v in &f[1..D] {
+        b.lo = b.lo.inf(&x0[v as usize]);
+        b.hi = b.hi.sup(&x0[v as usize]);
+    }
+    if let Some(x1) = x1 {
+        for &v in &f[..D] {
+            b.lo = b.lo.inf(&x1[v as usize]);
+            b.hi = b.hi.sup(&x1[v as usize]);
+        }
+    }
+    b
+}
+
 /// Cell budget per query box before falling back to a scan of all facets.
 const MAX_CELLS_PER_QUERY: usize = 4096;
+
+/// Largest dense cell table (entries) before the cells are numbered through a hash map instead.
+const MAX_DENSE_CELLS: usize = 1 << 22;
+
+/// Facets binned into the cells their boxes overlap (CSR by cell, counting sort: no comparison
+/// sort). Cells are numbered densely over the facets' bounding box when that box has few enough
+/// cells (`MAX_DENSE_CELLS`, and at most 8 per binned entry), else through a hash map.
+struct Bins<const D: usize> {
+    inv: f64,
+    /// Cell range of all facets.
+    glo: [i64; D],
+    ghi: [i64; D],
+    /// Linear-index strides of the dense table (unused when `sparse` is set).
+    stride: [usize; D],
+    sparse: Option<FxHashMap<[i64; D], u32>>,
+    /// `start[c]..start[c + 1]` indexes `facets` for cell number `c`.
+    start: Vec<u32>,
+    facets: Vec<u32>,
+    /// Each binned facet's lowest cell (`lo[f]`), for reporting a facet once per query.
+    flo: Vec<[i64; D]>,
+    /// Facets too large to bin, scanned by every query.
+    big: Vec<u32>,
+}
+
+impl<const D: usize> Bins<D> {
+    fn range(&self, b: &Aabb<D>) -> ([i64; D], [i64; D]) {
+        (
+            std::array::from_fn(|a| (b.lo[a] * self.inv).floor() as i64),
+            std::array::from_fn(|a| (b.hi[a] * self.inv).floor() as i64),
+        )
+    }
+
+    fn cell_number(&self, c: &[i64; D]) -> Option<usize> {
+        match &self.sparse {
+            Some(map) => map.get(c).map(|&k| k as usize),
+            None => Some(
+                (0..D)
+                    .map(|a| (c[a] - self.glo[a]) as usize * self.stride[a])
+                    .sum(),
+            ),
+        }
+    }
+
+    fn build(fboxes: &[Aabb<D>], all: &Aabb<D>, cell: f64) -> Self {
+        let inv = 1.0 / cell;
+        let mut bins = Self {
+            inv,
+            glo: [0; D],
+            ghi: [0; D],
+            stride: [0; D],
+            sparse: None,
+            start: Vec::new(),
+            facets: Vec::new(),
+            flo: vec![[0; D]; fboxes.len()],
+            big: Vec::new(),
+        };
+        (bins.glo, bins.ghi) = bins.range(all);
+        // Count the binned entries, and set the big facets aside.
+        let mut entries = 0usize;
+        let mut binned = vec![true; fboxes.len()];
+        for (f, b) in fboxes.iter().enumerate() {
+            let (lo, hi) = bins.range(b);
+            let n = ncells(&lo, &hi);
+            if n > MAX_CELLS_PER_QUERY {
+                bins.big.push(f as u32);
+                binned[f] = false;
+            } else {
+                entries += n;
+            }
+            bins.flo[f] = lo;
+        }
+        let dense = (0..D)
+            .map(|a| (bins.ghi[a] - bins.glo[a] + 1).max(1) as usize)
+            .try_fold(1usize, |x, y| x.checked_mul(y))
+            .filter(|&n| n <= MAX_DENSE_CELLS && n <= 8 * entries.max(1024));
+        // Each binned entry's cell number, in facet order.
+        let mut entry: Vec<(u32, u32)> = Vec::with_capacity(entries);
+        let ncell = match dense {
+            Some(n) => {
+                let mut s = 1;
+                for a in 0..D {
+                    bins.stride[a] = s;
+                    s *= (bins.ghi[a] - bins.glo[a] + 1) as usize;
+                }
+                for (f, b) in fboxes.iter().enumerate() {
+                    if binned[f] {
+                        let (lo, hi) = bins.range(b);
+                        for_each_cell(&lo, &hi, |c| {
+                            let k: usize = (0..D)
+                                .map(|a| (c[a] - bins.glo[a]) as usize * bins.stride[a])
+                                .sum();
+                            entry.push((k as u32, f as u32));
+                        });
+                    }
+                }
+                n
+            }
+            None => {
+                let mut map: FxHashMap<[i64; D], u32> = FxHashMap::default();
+                for (f, b) in fboxes.iter().enumerate() {
+                    if binned[f] {
+                        let (lo, hi) = bins.range(b);
+                        for_each_cell(&lo, &hi, |c| {
+                            let k = map.len() as u32;
+                            let k = *map.entry(c).or_insert(k);
+                            entry.push((k, f as u32));
+                        });
+                    }
+                }
+                let n = map.len();
+                bins.sparse = Some(map);
+                n
+            }
+        };
+        // Counting sort of the entries by cell.
+        let mut start = vec![0u32; ncell + 1];
+        for &(k, _) in &entry {
+            start[k as usize + 1] += 1;
+        }
+        for k in 0..ncell {
+            start[k + 1] += start[k];
+        }
+        let mut next = start.clone();
+        let mut facets = vec![0u32; entry.len()];
+        for &(k, f) in &entry {
+            facets[next[k as usize] as usize] = f;
+            next[k as usize] += 1;
+        }
+        bins.start = start;
+        bins.facets = facets;
+        bins
+    }
+}
+
+fn ncells<const D: usize>(lo: &[i64; D], hi: &[i64; D]) -> usize {
+    (0..D)
+        .map(|a| (hi[a] - lo[a] + 1).max(0) as usize)
+        .fold(1usize, |x, y| x.saturating_mul(y))
+}
 
 fn query<const D: usize>(pboxes: &[Aabb<D>], fboxes: &[Aabb<D>], out: &mut Candidates) {
     out.start.clear();
@@ -155,46 +312,13 @@ fn query<const D: usize>(pboxes: &[Aabb<D>], fboxes: &[Aabb<D>], out: &mut Candi
     if !(cell > 0.0 && cell.is_finite()) {
         cell = 1.0;
     }
-    let inv = 1.0 / cell;
-    let range = |b: &Aabb<D>| -> ([i64; D], [i64; D]) {
-        (
-            std::array::from_fn(|a| (b.lo[a] * inv).floor() as i64),
-            std::array::from_fn(|a| (b.hi[a] * inv).floor() as i64),
-        )
-    };
-    let ncells = |lo: &[i64; D], hi: &[i64; D]| -> usize {
-        (0..D)
-            .map(|a| (hi[a] - lo[a] + 1).max(0) as usize)
-            .fold(1usize, |x, y| x.saturating_mul(y))
-    };
-    // Bin facets; huge facets go to a list every query scans.
-    let mut pairs: Vec<([i64; D], u32)> = Vec::new();
-    let mut big: Vec<u32> = Vec::new();
-    for (f, b) in fboxes.iter().enumerate() {
-        let (lo, hi) = range(b);
-        if ncells(&lo, &hi) > MAX_CELLS_PER_QUERY {
-            big.push(f as u32);
-            continue;
-        }
-        for_each_cell(&lo, &hi, |c| pairs.push((c, f as u32)));
-    }
-    pairs.sort_unstable();
-    let mut table: FxHashMap<[i64; D], (u32, u32)> = FxHashMap::default();
-    let mut i = 0;
-    while i < pairs.len() {
-        let mut j = i + 1;
-        while j < pairs.len() && pairs[j].0 == pairs[i].0 {
-            j += 1;
-        }
-        table.insert(pairs[i].0, (i as u32, j as u32));
-        i = j;
-    }
     // Every facet lies in `all`: a particle box outside it has no candidates (most particles
     // of a body far from, or only partly near, the other one) and needs no look-up.
     let all = fboxes.iter().skip(1).fold(fboxes[0], |u, b| Aabb {
         lo: u.lo.inf(&b.lo),
         hi: u.hi.sup(&b.hi),
     });
+    let bins = Bins::build(fboxes, &all, cell);
     // Chunks of particles in parallel, each with one growing buffer (no allocation per
     // particle); concatenated in order.
     let chunks: Vec<(Vec<u32>, Vec<u32>)> = pboxes
@@ -208,38 +332,42 @@ fn query<const D: usize>(pboxes: &[Aabb<D>], fboxes: &[Aabb<D>], out: &mut Candi
                     continue;
                 }
                 let before = facets.len();
-                let (lo, hi) = range(pb);
+                let (lo, hi) = bins.range(pb);
                 if ncells(&lo, &hi) > MAX_CELLS_PER_QUERY {
                     facets.extend(
                         (0..fboxes.len() as u32).filter(|&f| fboxes[f as usize].overlaps(pb)),
                     );
                 } else {
-                    for_each_cell(&lo, &hi, |c| {
-                        if let Some(&(a, b)) = table.get(&c) {
-                            for &(_, f) in &pairs[a as usize..b as usize] {
-                                if fboxes[f as usize].overlaps(pb) {
+                    // Only the cells that hold facets; a facet is reported from the lowest cell
+                    // its range shares with the particle's, so once.
+                    let lo: [i64; D] = std::array::from_fn(|a| lo[a].max(bins.glo[a]));
+                    let hi: [i64; D] = std::array::from_fn(|a| hi[a].min(bins.ghi[a]));
+                    if (0..D).all(|a| lo[a] <= hi[a]) {
+                        for_each_cell(&lo, &hi, |c| {
+                            let Some(k) = bins.cell_number(&c) else {
+                                return;
+                            };
+                            let cell_facets =
+                                &bins.facets[bins.start[k] as usize..bins.start[k + 1] as usize];
+                            for &f in cell_facets {
+                                let flo = &bins.flo[f as usize];
+                                if (0..D).all(|a| c[a] == flo[a].max(lo[a]))
+                                    && fboxes[f as usize].overlaps(pb)
+                                {
                                     facets.push(f);
                                 }
                             }
-                        }
-                    });
+                        });
+                    }
                     facets.extend(
-                        big.iter()
+                        bins.big
+                            .iter()
                             .copied()
                             .filter(|&f| fboxes[f as usize].overlaps(pb)),
                     );
                 }
-                let mine = &mut facets[before..];
-                mine.sort_unstable();
-                let mut w = before;
-                for r in before..facets.len() {
-                    if r == before || facets[r] != facets[w - 1] {
-                        facets[w] = facets[r];
-                        w += 1;
-                    }
-                }
-                facets.truncate(w);
-                counts.push((w - before) as u32);
+                facets[before..].sort_unstable();
+                counts.push((facets.len() - before) as u32);
             }
             (counts, facets)
         })
