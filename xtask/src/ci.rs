@@ -17,7 +17,7 @@ const STEPS: &[(&str, &[&str])] = &[
         ],
     ),
     ("tests", &["test", "--workspace", "--release"]),
-    ("validate", &["xtask", "validate", "--quick"]),
+    ("validate", &["xtask", "validate", "--quick", "--jobs", "2"]),
 ];
 
 pub fn run() -> anyhow::Result<()> {

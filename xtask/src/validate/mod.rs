@@ -2,7 +2,7 @@
 //! compared with the analytic answer or the paper's number, one table, charts and a report.
 //!
 //! ```text
-//! cargo xtask validate [--quick | --full] [--only NAME…] [--out DIR] [--publish]
+//! cargo xtask validate [--quick | --full] [--only NAME…] [--jobs N] [--out DIR] [--publish]
 //! ```
 //!
 //! The quick tier (default) uses coarser resolutions that keep each check meaningful; the full
@@ -373,6 +373,9 @@ struct Experiment {
     section: &'static str,
     title: &'static str,
     run: fn(&Ctx) -> Result<Outcome>,
+    /// Quick-tier wall time measured in CI (clean clone at 9e5dc73, 2-core Intel Xeon 2.0 GHz):
+    /// balances `--jobs` when the output directory has no saved outcome to go by.
+    quick_s: f64,
 }
 
 /// Everything an experiment needs.
@@ -543,78 +546,91 @@ const EXPERIMENTS: &[Experiment] = &[
         section: "BFEMP 6.1",
         title: "MPM ring vs FEM ring at 40 m/s: momentum, energy, non-penetration",
         run: rings::run,
+        quick_s: 113.0,
     },
     Experiment {
         name: "sine_boundary",
         section: "BFEMP 6.2",
         title: "FEM sine-wave boundary vs level-set slip boundary",
         run: sine::run,
+        quick_s: 74.0,
     },
     Experiment {
         name: "hertz",
         section: "BFEMP 6.3",
         title: "Brazilian disk: force vs contact radius against 2D Hertz",
         run: hertz::run,
+        quick_s: 13.0,
     },
     Experiment {
         name: "slope",
         section: "BFEMP 6.4",
         title: "Stiff MPM box on a frictional FEM slope: g(sinθ − μcosθ), sticking at μ = tanθ",
         run: slope::run,
+        quick_s: 21.0,
     },
     Experiment {
         name: "refinement",
         section: "BFEMP 6.5",
         title: "MPM box on FEM box under refinement: convergence order",
         run: refinement::run,
+        quick_s: 34.0,
     },
     Experiment {
         name: "buckling",
         section: "BFEMP 6.6",
         title: "Semicircular rings compressed: buckling order vs μ",
         run: buckling::run,
+        quick_s: 219.0,
     },
     Experiment {
         name: "twist",
         section: "BFEMP 6.7",
         title: "3D shell twisting an MPM cube: slip angles vs μ",
         run: twist::run,
+        quick_s: 245.0,
     },
     Experiment {
         name: "two_particles",
         section: "augury 3.1",
         title: "Two particles in one cell, APIC vs PIC",
         run: augury::two_particles,
+        quick_s: 0.1,
     },
     Experiment {
         name: "blocks_impact",
         section: "augury 3.2",
         title: "Two blocks impacting at an angle: exact momenta",
         run: augury::blocks_impact,
+        quick_s: 24.0,
     },
     Experiment {
         name: "ramp",
         section: "augury 3.3",
         title: "Block sliding down a 30° ramp",
         run: augury::ramp_experiment,
+        quick_s: 38.0,
     },
     Experiment {
         name: "compare",
         section: "both papers",
         title: "Speed vs accuracy: block sliding down a ramp, BFEMP / augury / penalty",
         run: compare::run,
+        quick_s: 76.0,
     },
     Experiment {
         name: "disk_plates",
         section: "both papers",
         title: "Speed vs accuracy: a disk pressed between plates (Hertz), BFEMP / augury / penalty",
         run: disk::run,
+        quick_s: 68.0,
     },
     Experiment {
         name: "stability",
         section: "both papers",
         title: "Stability maps: time step against impact speed",
         run: stability::run,
+        quick_s: 6.0,
     },
 ];
 
@@ -633,6 +649,8 @@ pub struct Done {
     commit: String,
     /// Run by this invocation (not loaded from a saved outcome).
     fresh: bool,
+    /// Ran alongside other experiments (`--jobs`): its wall time is not comparable.
+    concurrent: bool,
 }
 
 /// An experiment's outcome as saved in `OUT/NAME/outcome.json`, so that a long tier can be run
@@ -645,6 +663,9 @@ struct Saved {
     finished_unix: u64,
     /// `git describe --always --dirty` of the code that ran it.
     commit: String,
+    /// Ran alongside other experiments (`--jobs`).
+    #[serde(default)]
+    concurrent: bool,
     /// Paths are relative to the output directory.
     outcome: Result<Outcome, String>,
 }
@@ -656,6 +677,7 @@ fn save(
     name: &str,
     tier: Tier,
     wall_s: f64,
+    concurrent: bool,
     outcome: &Result<Outcome, String>,
 ) -> Result<Saved> {
     let rel = |p: &PathBuf| {
@@ -682,6 +704,7 @@ fn save(
             .duration_since(std::time::UNIX_EPOCH)
             .map_or(0, |d| d.as_secs()),
         commit: commit.to_string(),
+        concurrent,
         outcome,
     };
     let path = out.join(name).join("outcome.json");
@@ -748,13 +771,15 @@ fn utc_minute(unix: u64) -> String {
 }
 
 const USAGE: &str =
-    "usage: cargo xtask validate [--quick | --full] [--only NAME…] [--report] [--out DIR] \
-     [--publish]
+    "usage: cargo xtask validate [--quick | --full] [--only NAME…] [--jobs N] [--report] \
+     [--out DIR] [--publish]
 
   --quick    coarse resolutions, minutes (default)
   --full     the papers' parameters (hours); with no --only, publishes to docs/validation/full/
   --only     run only these experiments; the report also shows every other experiment's saved
              outcome in the output directory (so a long tier can be run a piece at a time)
+  --jobs     run the experiments in N processes at once (balanced by expected wall time); the
+             checks are the same, the wall times overlap (marked ‖ in the report). CI uses 2
   --report   run nothing: assemble the report from the saved outcomes
   --out      output directory (default target/validation/<tier>)
   --publish  copy the report and what it shows into docs/validation/ (quick) or
@@ -766,6 +791,8 @@ pub fn main(args: &[String]) -> Result<()> {
     let mut only: Vec<String> = Vec::new();
     let mut publish = false;
     let mut report_only = false;
+    let mut jobs = 1usize;
+    let mut worker = false;
     let mut out: Option<PathBuf> = None;
     let mut it = args.iter().peekable();
     while let Some(a) = it.next() {
@@ -773,6 +800,15 @@ pub fn main(args: &[String]) -> Result<()> {
             "--quick" => tier = Tier::Quick,
             "--publish" => publish = true,
             "--report" => report_only = true,
+            // One of `--jobs`' processes: saves outcomes, writes no report.
+            "--worker" => worker = true,
+            "--jobs" => {
+                jobs = match it.next().map(|n| n.parse::<usize>()) {
+                    Some(Ok(n)) if n >= 1 => n,
+                    Some(_) => bail!("--jobs needs a whole number ≥ 1\n{USAGE}"),
+                    None => bail!("--jobs needs a number\n{USAGE}"),
+                }
+            }
             "--full" => tier = Tier::Full,
             "--out" => match it.next() {
                 Some(d) => out = Some(PathBuf::from(d)),
@@ -814,9 +850,48 @@ pub fn main(args: &[String]) -> Result<()> {
     let started = Instant::now();
     let mut done = Vec::new();
     let mut ran = 0;
+    let is_selected =
+        |name: &str| !report_only && (only.is_empty() || only.iter().any(|n| n == name));
+    let selected: Vec<&'static str> = EXPERIMENTS
+        .iter()
+        .map(|e| e.name)
+        .filter(|n| is_selected(n))
+        .collect();
+    let parallel = jobs > 1 && selected.len() > 1 && !worker;
+    if parallel {
+        run_workers(&selected, jobs, tier, &out)?;
+    }
     for e in EXPERIMENTS {
-        let selected = !report_only && (only.is_empty() || only.iter().any(|n| n == e.name));
-        if !selected {
+        if parallel {
+            let saved = load(&out, e.name, tier)?;
+            let fresh = selected.contains(&e.name);
+            done.push(Done {
+                name: e.name,
+                section: e.section,
+                title: e.title,
+                wall_s: saved.as_ref().map_or(0.0, |s| s.wall_s),
+                finished: saved
+                    .as_ref()
+                    .map_or_else(String::new, |s| utc_minute(s.finished_unix)),
+                commit: saved
+                    .as_ref()
+                    .map_or_else(String::new, |s| s.commit.clone()),
+                concurrent: saved.as_ref().is_some_and(|s| s.concurrent),
+                outcome: match saved {
+                    Some(s) => Some(s.outcome),
+                    None if fresh => Some(Err(
+                        "its worker process stopped before saving an outcome (see its output \
+                         above)"
+                            .into(),
+                    )),
+                    None => None,
+                },
+                fresh,
+            });
+            ran += usize::from(fresh);
+            continue;
+        }
+        if !is_selected(e.name) {
             let saved = load(&out, e.name, tier)?;
             done.push(Done {
                 name: e.name,
@@ -829,6 +904,7 @@ pub fn main(args: &[String]) -> Result<()> {
                 commit: saved
                     .as_ref()
                     .map_or_else(String::new, |s| s.commit.clone()),
+                concurrent: saved.as_ref().is_some_and(|s| s.concurrent),
                 outcome: saved.map(|s| s.outcome),
                 fresh: false,
             });
@@ -851,7 +927,7 @@ pub fn main(args: &[String]) -> Result<()> {
             })
             .map_err(|err| format!("{err:#}"));
         let wall_s = t.elapsed().as_secs_f64();
-        let saved = save(&commit, &out, e.name, tier, wall_s, &outcome)?;
+        let saved = save(&commit, &out, e.name, tier, wall_s, worker, &outcome)?;
         let d = Done {
             name: e.name,
             section: e.section,
@@ -861,15 +937,25 @@ pub fn main(args: &[String]) -> Result<()> {
             finished: utc_minute(saved.finished_unix),
             commit: saved.commit,
             fresh: true,
+            concurrent: worker,
         };
         let _ = progress.println(report::rows(&d).join("\n"));
         done.push(d);
         ran += 1;
     }
     let total = started.elapsed().as_secs_f64();
-    println!("\n{}", report::table(&done));
+    if !worker {
+        println!("\n{}", report::table(&done));
+    }
     // The exit code answers for what this invocation ran (for `--report`, for everything).
     let failed = report::failures(done.iter().filter(|d| d.fresh || report_only));
+    if worker {
+        // The parent process assembles the report once every worker has finished.
+        if failed > 0 {
+            bail!("{failed} check(s) failed");
+        }
+        return Ok(());
+    }
     report::write(&out, tier, &done)?;
     println!("report: {}", out.join("README.md").display());
     if (tier == Tier::Full && only.is_empty() && !report_only) || publish {
@@ -888,6 +974,103 @@ pub fn main(args: &[String]) -> Result<()> {
         bail!("{failed} check(s) failed");
     }
     Ok(())
+}
+
+/// Run the experiments `names` in `jobs` processes of this program (`validate --worker --only
+/// …`, a share each, longest expected first onto the least loaded), relaying their output
+/// line by line prefixed with the worker's number, and wait for all of them. Each saves its
+/// outcomes under `out` as it goes; a stale outcome of a selected experiment is removed first,
+/// so that a worker that dies leaves no outcome to be mistaken for a fresh one.
+fn run_workers(names: &[&'static str], jobs: usize, tier: Tier, out: &Path) -> Result<()> {
+    use std::io::BufRead;
+    use std::process::{Command, Stdio};
+    let mut cost: Vec<(f64, &str)> = Vec::with_capacity(names.len());
+    for &n in names {
+        let e = EXPERIMENTS
+            .iter()
+            .find(|e| e.name == n)
+            .expect("names are checked against EXPERIMENTS");
+        // The last saved wall time of this tier, else the CI figure (scaled for the full tier:
+        // only the order matters).
+        let expected = match load(out, n, tier).ok().flatten() {
+            Some(s) => s.wall_s,
+            None if tier == Tier::Quick => e.quick_s,
+            None => 30.0 * e.quick_s,
+        };
+        cost.push((expected, n));
+        let stale = out.join(n).join("outcome.json");
+        if stale.exists() {
+            std::fs::remove_file(&stale)
+                .with_context(|| format!("removing {}", stale.display()))?;
+        }
+    }
+    let groups = partition(cost, jobs);
+    let exe = std::env::current_exe().context("locating the xtask program")?;
+    let mut children = Vec::new();
+    let mut relays = Vec::new();
+    for (k, (c, g)) in groups.iter().enumerate() {
+        println!("worker {k}: {} (expected ≈ {c:.0} s)", g.join(", "));
+        let mut child = Command::new(&exe)
+            .arg("validate")
+            .arg(format!("--{}", tier.name()))
+            .arg("--worker")
+            .arg("--out")
+            .arg(out)
+            .arg("--only")
+            .args(g)
+            .stdout(Stdio::piped())
+            .stderr(Stdio::piped())
+            .spawn()
+            .with_context(|| format!("starting worker {k} ({})", exe.display()))?;
+        let stdout = child.stdout.take().expect("piped");
+        let stderr = child.stderr.take().expect("piped");
+        relays.push(std::thread::spawn(move || {
+            for line in std::io::BufReader::new(stdout)
+                .lines()
+                .map_while(Result::ok)
+            {
+                println!("[{k}] {line}");
+            }
+        }));
+        relays.push(std::thread::spawn(move || {
+            for line in std::io::BufReader::new(stderr)
+                .lines()
+                .map_while(Result::ok)
+            {
+                eprintln!("[{k}] {line}");
+            }
+        }));
+        children.push(child);
+    }
+    for (k, mut child) in children.into_iter().enumerate() {
+        let status = child
+            .wait()
+            .with_context(|| format!("waiting for worker {k}"))?;
+        // A non-zero exit is a failed check (counted from the saved outcomes) or a crash (a
+        // missing outcome): both show in the report.
+        println!("worker {k} finished ({status})");
+    }
+    for r in relays {
+        let _ = r.join();
+    }
+    Ok(())
+}
+
+/// `(expected seconds, name)` shared among at most `jobs` groups: longest first onto the least
+/// loaded group (each group's total load, names in the order assigned).
+fn partition(mut cost: Vec<(f64, &str)>, jobs: usize) -> Vec<(f64, Vec<&str>)> {
+    cost.sort_by(|a, b| b.0.total_cmp(&a.0));
+    let mut groups: Vec<(f64, Vec<&str>)> =
+        vec![(0.0, Vec::new()); jobs.clamp(1, cost.len().max(1))];
+    for (c, n) in cost {
+        let g = groups
+            .iter_mut()
+            .min_by(|a, b| a.0.total_cmp(&b.0))
+            .expect("at least one group");
+        g.0 += c;
+        g.1.push(n);
+    }
+    groups
 }
 
 /// Least-squares slope of the line through `(x, y)` points.
@@ -934,7 +1117,7 @@ mod tests {
             notes: vec!["a note".into()],
             pictures: vec![("scene".into(), vec![out.join("charts/scene_k.png")])],
         });
-        save("abc1234", out, "demo", Tier::Full, 12.5, &outcome).unwrap();
+        save("abc1234", out, "demo", Tier::Full, 12.5, true, &outcome).unwrap();
         let text = std::fs::read_to_string(out.join("demo/outcome.json")).unwrap();
         assert!(
             text.contains("\"charts/a.png\""),
@@ -943,6 +1126,7 @@ mod tests {
         let saved = load(out, "demo", Tier::Full).unwrap().expect("saved");
         assert_eq!(saved.commit, "abc1234");
         assert_eq!(saved.wall_s, 12.5);
+        assert!(saved.concurrent);
         let o = saved.outcome.unwrap();
         assert_eq!(o.checks.len(), 2);
         assert_eq!(o.checks[0].status, Status::Pass);
@@ -964,10 +1148,45 @@ mod tests {
             "bad",
             Tier::Full,
             1.0,
+            false,
             &Err("it broke".into()),
         )
         .unwrap();
         let bad = load(out, "bad", Tier::Full).unwrap().unwrap();
+        assert!(!bad.concurrent);
         assert_eq!(bad.outcome.err().unwrap(), "it broke");
+        // Saved before `--jobs` existed (no `concurrent` field): not concurrent.
+        let old = r#"{"tier": "full", "wall_s": 3.0, "finished_unix": 0, "commit": "c",
+            "outcome": {"Err": "old"}}"#;
+        std::fs::write(out.join("bad/outcome.json"), old).unwrap();
+        let old = load(out, "bad", Tier::Full).unwrap().unwrap();
+        assert!(!old.concurrent);
+        assert_eq!(old.wall_s, 3.0);
+    }
+
+    #[test]
+    fn jobs_share_the_experiments_longest_first_onto_the_least_loaded() {
+        let cost = vec![
+            (10.0, "a"),
+            (245.0, "twist"),
+            (219.0, "buckling"),
+            (113.0, "rings"),
+            (76.0, "compare"),
+            (6.0, "b"),
+        ];
+        let groups = partition(cost.clone(), 2);
+        assert_eq!(groups.len(), 2);
+        assert_eq!(groups[0].1[0], "twist");
+        assert_eq!(groups[1].1[0], "buckling");
+        // Every experiment exactly once, and the loads add up.
+        let mut all: Vec<&str> = groups.iter().flat_map(|g| g.1.clone()).collect();
+        all.sort_unstable();
+        assert_eq!(all, ["a", "b", "buckling", "compare", "rings", "twist"]);
+        let load: f64 = groups.iter().map(|g| g.0).sum();
+        assert_eq!(load, cost.iter().map(|c| c.0).sum::<f64>());
+        // Balanced to within the smallest item that could still move.
+        assert!((groups[0].0 - groups[1].0).abs() <= 76.0, "{groups:?}");
+        // More jobs than experiments: one each.
+        assert_eq!(partition(cost[..2].to_vec(), 4).len(), 2);
     }
 }

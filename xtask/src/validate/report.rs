@@ -110,6 +110,13 @@ pub fn write(out: &Path, tier: Tier, done: &[Done]) -> Result<()> {
          measured by the run; nothing is copied from the papers except the expected values.\n",
         tier.name(),
     );
+    if done.iter().any(|d| d.outcome.is_some() && d.concurrent) {
+        let _ = writeln!(
+            s,
+            "Wall times marked ‖ were measured with other experiments running alongside \
+             (`--jobs`): the checks are unaffected, the times are not comparable with the others.\n"
+        );
+    }
     match tier {
         Tier::Quick => {
             let _ = writeln!(
@@ -205,7 +212,7 @@ pub fn write(out: &Path, tier: Tier, done: &[Done]) -> Result<()> {
                         cell(&c.tolerance),
                         status,
                         if k == 0 {
-                            format!("{:.1} s", d.wall_s)
+                            format!("{:.1} s{}", d.wall_s, if d.concurrent { " ‖" } else { "" })
                         } else {
                             String::new()
                         }
@@ -219,8 +226,15 @@ pub fn write(out: &Path, tier: Tier, done: &[Done]) -> Result<()> {
         let _ = writeln!(s, "\n## {} — {} ({})\n", d.section, d.title, d.name);
         let _ = writeln!(
             s,
-            "*Ran {} at commit {}, {:.0} s.*\n",
-            d.finished, d.commit, d.wall_s
+            "*Ran {} at commit {}, {:.0} s{}.*\n",
+            d.finished,
+            d.commit,
+            d.wall_s,
+            if d.concurrent {
+                " (alongside other experiments: `--jobs`)"
+            } else {
+                ""
+            }
         );
         match outcome {
             Err(e) => {
