@@ -910,7 +910,10 @@ pub fn main(args: &[String]) -> Result<()> {
             });
             continue;
         }
-        let _ = progress.println(format!("{} ({}): {}", e.name, e.section, e.title));
+        say(
+            &progress,
+            format!("{} ({}): {}", e.name, e.section, e.title),
+        );
         let ctx = Ctx {
             tier,
             dir: out.join(e.name),
@@ -939,7 +942,7 @@ pub fn main(args: &[String]) -> Result<()> {
             fresh: true,
             concurrent: worker,
         };
-        let _ = progress.println(report::rows(&d).join("\n"));
+        say(&progress, report::rows(&d).join("\n"));
         done.push(d);
         ran += 1;
     }
@@ -1054,6 +1057,16 @@ fn run_workers(names: &[&'static str], jobs: usize, tier: Tier, out: &Path) -> R
         let _ = r.join();
     }
     Ok(())
+}
+
+/// A line above the progress bars, or on stdout when there are none (not a terminal: CI logs,
+/// `--jobs` workers), so that a log shows each experiment as it starts and ends.
+fn say(progress: &indicatif::MultiProgress, line: String) {
+    if progress.is_hidden() {
+        println!("{line}");
+    } else {
+        let _ = progress.println(line);
+    }
 }
 
 /// `(expected seconds, name)` shared among at most `jobs` groups: longest first onto the least
