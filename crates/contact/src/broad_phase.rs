@@ -227,7 +227,7 @@ impl<const D: usize> Bins<D> {
             bins.flo[f] = lo;
         }
         let dense = (0..D)
-            .map(|a| (bins.ghi[a] - bins.glo[a] + 1).max(1) as usize)
+            .map(|a| span(bins.glo[a], bins.ghi[a]))
             .try_fold(1usize, |x, y| x.checked_mul(y))
             .filter(|&n| n <= MAX_DENSE_CELLS && n <= 8 * entries.max(1024));
         // Each binned entry's cell number, in facet order.
@@ -291,8 +291,18 @@ impl<const D: usize> Bins<D> {
 
 fn ncells<const D: usize>(lo: &[i64; D], hi: &[i64; D]) -> usize {
     (0..D)
-        .map(|a| (hi[a] - lo[a] + 1).max(0) as usize)
+        .map(|a| span(lo[a], hi[a]))
         .fold(1usize, |x, y| x.saturating_mul(y))
+}
+
+/// Number of cells in `lo..=hi` (saturating: infinite or huge coordinates floor to `i64::MIN` /
+/// `i64::MAX`, and such a box must count as huge, not overflow).
+fn span(lo: i64, hi: i64) -> usize {
+    if hi < lo {
+        0
+    } else {
+        usize::try_from(hi.abs_diff(lo)).map_or(usize::MAX, |d| d.saturating_add(1))
+    }
 }
 
 fn query<const D: usize>(pboxes: &[Aabb<D>], fboxes: &[Aabb<D>], out: &mut Candidates) {
@@ -391,8 +401,8 @@ fn for_each_cell<const D: usize>(lo: &[i64; D], hi: &[i64; D], mut f: impl FnMut
             if a == D {
                 return;
             }
-            c[a] += 1;
-            if c[a] <= hi[a] {
+            if c[a] < hi[a] {
+                c[a] += 1;
                 break;
             }
             c[a] = lo[a];

@@ -130,3 +130,31 @@ proptest! {
         check(case)?;
     }
 }
+
+#[test]
+fn non_finite_and_huge_coordinates_do_not_overflow() {
+    // A facet reaching to infinity (an exploded step's trial point) and one at ±1e300 next to
+    // ordinary ones: the query stays total, and the finite facets are found as by brute force.
+    let v: Vec<SVector<f64, 2>> = vec![
+        SVector::from([0.0, 0.0]),
+        SVector::from([1.0, 0.0]),
+        SVector::from([0.0, f64::INFINITY]),
+        SVector::from([-1e300, 1e300]),
+        SVector::from([0.5, 0.1]),
+        SVector::from([f64::INFINITY, f64::INFINITY]),
+    ];
+    let f = vec![[0, 1, 0], [1, 2, 0], [3, 0, 0], [0, 4, 0], [5, 5, 0]];
+    let p: Vec<SVector<f64, 2>> = vec![
+        SVector::from([0.5, 0.05]),
+        SVector::from([f64::NEG_INFINITY, 0.0]),
+        SVector::from([0.9, -0.05]),
+        SVector::from([f64::INFINITY, f64::INFINITY]),
+    ];
+    for dist in [0.0, 0.1] {
+        let mut c = Candidates::default();
+        broad_phase::candidates_within(&p, &v, &f, dist, &mut c);
+        for (q, x) in p.iter().enumerate() {
+            assert_eq!(c.of(q), &brute(x, x, &v, &v, &f, dist)[..], "particle {q}");
+        }
+    }
+}
