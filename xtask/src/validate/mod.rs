@@ -653,6 +653,27 @@ pub struct Done {
     concurrent: bool,
 }
 
+impl Done {
+    /// Experiment `e`'s row from its saved outcome (`None`: not run in this tier yet).
+    fn saved(e: &Experiment, saved: Option<Saved>, fresh: bool) -> Self {
+        Self {
+            name: e.name,
+            section: e.section,
+            title: e.title,
+            wall_s: saved.as_ref().map_or(0.0, |s| s.wall_s),
+            finished: saved
+                .as_ref()
+                .map_or_else(String::new, |s| utc_minute(s.finished_unix)),
+            commit: saved
+                .as_ref()
+                .map_or_else(String::new, |s| s.commit.clone()),
+            concurrent: saved.as_ref().is_some_and(|s| s.concurrent),
+            outcome: saved.map(|s| s.outcome),
+            fresh,
+        }
+    }
+}
+
 /// An experiment's outcome as saved in `OUT/NAME/outcome.json`, so that a long tier can be run
 /// an experiment at a time (`--only`) and its report assembled from every saved outcome.
 #[derive(serde::Serialize, serde::Deserialize)]
@@ -863,51 +884,21 @@ pub fn main(args: &[String]) -> Result<()> {
     }
     for e in EXPERIMENTS {
         if parallel {
-            let saved = load(&out, e.name, tier)?;
+            // Run by a worker: a missing outcome means the worker died before saving it.
             let fresh = selected.contains(&e.name);
-            done.push(Done {
-                name: e.name,
-                section: e.section,
-                title: e.title,
-                wall_s: saved.as_ref().map_or(0.0, |s| s.wall_s),
-                finished: saved
-                    .as_ref()
-                    .map_or_else(String::new, |s| utc_minute(s.finished_unix)),
-                commit: saved
-                    .as_ref()
-                    .map_or_else(String::new, |s| s.commit.clone()),
-                concurrent: saved.as_ref().is_some_and(|s| s.concurrent),
-                outcome: match saved {
-                    Some(s) => Some(s.outcome),
-                    None if fresh => Some(Err(
-                        "its worker process stopped before saving an outcome (see its output \
-                         above)"
-                            .into(),
-                    )),
-                    None => None,
-                },
-                fresh,
-            });
+            let mut d = Done::saved(e, load(&out, e.name, tier)?, fresh);
+            if fresh && d.outcome.is_none() {
+                d.outcome = Some(Err(
+                    "its worker process stopped before saving an outcome (see its output above)"
+                        .into(),
+                ));
+            }
+            done.push(d);
             ran += usize::from(fresh);
             continue;
         }
         if !is_selected(e.name) {
-            let saved = load(&out, e.name, tier)?;
-            done.push(Done {
-                name: e.name,
-                section: e.section,
-                title: e.title,
-                wall_s: saved.as_ref().map_or(0.0, |s| s.wall_s),
-                finished: saved
-                    .as_ref()
-                    .map_or_else(String::new, |s| utc_minute(s.finished_unix)),
-                commit: saved
-                    .as_ref()
-                    .map_or_else(String::new, |s| s.commit.clone()),
-                concurrent: saved.as_ref().is_some_and(|s| s.concurrent),
-                outcome: saved.map(|s| s.outcome),
-                fresh: false,
-            });
+            done.push(Done::saved(e, load(&out, e.name, tier)?, false));
             continue;
         }
         say(
