@@ -44,6 +44,9 @@ pub struct Metrics {
     /// Newton iterations that factorised the exact Hessian (`solver.projection:
     /// "when_indefinite"`; 0 with the default `"always"`).
     pub exact_hessians: usize,
+    /// Newton iterations that reused the previous iteration's Hessian
+    /// (`solver.reuse_hessian_below`).
+    pub reused_hessians: usize,
     /// Conjugate-gradient iterations of the step (`solver.linear: "pcg"`; 0 with Cholesky).
     pub pcg_iterations: usize,
     /// Wall-clock seconds of the step.
@@ -61,7 +64,7 @@ pub fn csv_header<const D: usize>() -> String {
         h.push_str(",angular_momentum");
     }
     h.push_str(
-        ",min_distance,penetrations,newton_iterations,friction_iterations,contact_terms,backtracks,ccd_limited,exact_hessians,pcg_iterations,wall_s",
+        ",min_distance,penetrations,newton_iterations,friction_iterations,contact_terms,backtracks,ccd_limited,exact_hessians,reused_hessians,pcg_iterations,wall_s",
     );
     h
 }
@@ -94,7 +97,7 @@ impl Metrics {
             r.push_str(&format!(",{:.12e}", self.angular_momentum[2]));
         }
         r.push_str(&format!(
-            ",{:.9e},{},{},{},{},{},{},{},{},{:.6e}",
+            ",{:.9e},{},{},{},{},{},{},{},{},{},{:.6e}",
             self.min_distance,
             self.penetrations,
             self.newton_iterations,
@@ -103,6 +106,7 @@ impl Metrics {
             self.backtracks,
             self.ccd_limited,
             self.exact_hessians,
+            self.reused_hessians,
             self.pcg_iterations,
             self.wall_s
         ));

@@ -233,6 +233,31 @@ pub struct StepObjective<'a, const D: usize> {
     pub(crate) timing: ObjectiveTiming,
     /// Number of active contact terms and smallest contact distance at the last gradient.
     pub(crate) last_contacts: (usize, f64),
+    /// Which barrier terms were active at the last gradient and at the last Hessian
+    /// ([`terms_key`]), for [`Objective::hessian_terms_unchanged`].
+    grad_terms: u64,
+    hess_terms: Option<u64>,
+}
+
+/// A fingerprint of the active barrier terms (pair, particle, feature vertices, in order): equal
+/// for the same contact set. The lagged friction terms are fixed within a solve.
+fn terms_key<const D: usize>(cache: &[[Vec<TermDerivatives<D>>; 2]]) -> u64 {
+    // FNV-1a over the terms' indices.
+    let mut h: u64 = 0xcbf2_9ce4_8422_2325;
+    let mut mix = |v: u64| {
+        h ^= v;
+        h = h.wrapping_mul(0x0000_0100_0000_01b3);
+    };
+    for (k, [bar, _]) in cache.iter().enumerate() {
+        mix(k as u64 | (bar.len() as u64) << 32);
+        for t in bar {
+            mix(t.particle as u64 | (t.n as u64) << 32);
+            for &v in &t.vertices[..t.n - 1] {
+                mix(v as u64);
+            }
+        }
+    }
+    h
 }
 
 impl<'a, const D: usize> StepObjective<'a, D> {
@@ -288,6 +313,8 @@ impl<'a, const D: usize> StepObjective<'a, D> {
             prefer_exact: false,
             timing: ObjectiveTiming::default(),
             last_contacts: (0, f64::INFINITY),
+            grad_terms: 0,
+            hess_terms: None,
         }
     }
 
@@ -482,6 +509,7 @@ impl<'a, const D: usize> StepObjective<'a, D> {
             self.scatter(k, bar, None, Some(h));
             self.scatter(k, fric, None, Some(h));
         }
+        self.hess_terms = Some(terms_key(&cache));
         self.contact_cache.0 = cache;
         self.timing.contact_s += lap(&mut clock);
         if self.mpm.is_some() {
@@ -940,6 +968,7 @@ impl<const D: usize> Objective for StepObjective<'_, D> {
         } else {
             self.contact_gradient(g, self.prefer_exact)
         };
+        self.grad_terms = terms_key(&self.contact_cache.0);
         self.timing.contact_s += lap(&mut clock);
         self.last_contacts = (count, dmin);
     }
@@ -951,6 +980,10 @@ impl<const D: usize> Objective for StepObjective<'_, D> {
     fn exact_hessian(&mut self, x: &[f64], h: &mut Triplets) -> bool {
         self.build_hessian(x, h, true);
         true
+    }
+
+    fn hessian_terms_unchanged(&mut self) -> bool {
+        self.hess_terms == Some(self.grad_terms)
     }
 
     fn max_step(&mut self, x: &[f64], p: &[f64]) -> StepBound {
@@ -1323,6 +1356,51 @@ mod tests {
             hd[r * n + c] += v;
         }
         hd
+    }
+
+    /// `hessian_terms_unchanged` (the solver's licence to reuse a Hessian) holds at the
+    /// Hessian's own point and at a nearby one with the same contacts, and fails before any
+    /// Hessian and once the contact set changed (the particles moved out of reach).
+    #[test]
+    fn hessian_terms_unchanged_tracks_the_contact_set() {
+        let mut w = world::<2>(SCENE_2D);
+        let setup = w.setup().unwrap();
+        let n = setup.n_dofs;
+        let r = noise(n, 11);
+        let x: Vec<f64> = (0..n).map(|d| setup.x0[d] + 1e-4 * r[d]).collect();
+        let mut obj = setup.objective(&w);
+        obj.lag_friction(&setup.x0);
+        let mut g = vec![0.0; n];
+        obj.gradient(&x, &mut g);
+        assert!(
+            obj.last_contacts.0 > 10,
+            "contacts: {}",
+            obj.last_contacts.0
+        );
+        assert!(!obj.hessian_terms_unchanged(), "no Hessian yet");
+        let mut t = Triplets::default();
+        obj.hessian(&x, &mut t);
+        obj.gradient(&x, &mut g);
+        assert!(obj.hessian_terms_unchanged());
+        let near: Vec<f64> = (0..n).map(|d| x[d] + 1e-9 * r[(d + 1) % n]).collect();
+        obj.gradient(&near, &mut g);
+        assert!(obj.hessian_terms_unchanged());
+        // The grid (and so every particle) 100 m away, out of the contact distance.
+        let away: Vec<f64> = (0..n)
+            .map(|d| x[d] + if d < obj.n_grid * 2 { 100.0 } else { 0.0 })
+            .collect();
+        let near_contacts = obj.last_contacts.0;
+        obj.gradient(&away, &mut g);
+        // What is left: the two FEM bodies' contact with each other.
+        assert!(
+            obj.last_contacts.0 < near_contacts,
+            "{near_contacts} → {}",
+            obj.last_contacts.0
+        );
+        assert!(!obj.hessian_terms_unchanged());
+        obj.hessian(&away, &mut t);
+        obj.gradient(&away, &mut g);
+        assert!(obj.hessian_terms_unchanged());
     }
 
     /// The Hessian built from the derivatives the gradient kept equals one computed afresh, and

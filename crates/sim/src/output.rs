@@ -48,6 +48,9 @@ pub struct Summary {
     pub exact_hessian_iterations: usize,
     /// Exact Hessians found indefinite (those iterations used the projected one).
     pub exact_hessian_rejections: usize,
+    /// Newton iterations that reused the previous iteration's Hessian
+    /// (`solver.reuse_hessian_below`).
+    pub reused_hessians: usize,
     /// Conjugate-gradient iterations (`solver.linear: "pcg"`).
     pub pcg_iterations: usize,
     /// Newton directions CG did not deliver and Cholesky did (`solver.linear: "pcg"`).

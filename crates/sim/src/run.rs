@@ -144,6 +144,7 @@ pub fn run_with<const D: usize>(
                 m.backtracks = report.stats.backtracks;
                 m.ccd_limited = report.stats.limited_by_ccd;
                 m.exact_hessians = report.stats.exact_iterations;
+                m.reused_hessians = report.stats.reused_hessians;
                 m.pcg_iterations = report.stats.pcg_iterations;
                 m.wall_s = t0.elapsed().as_secs_f64();
                 if report.contact_terms > 0 {
@@ -156,6 +157,7 @@ pub fn run_with<const D: usize>(
                 summary.friction_iterations += report.friction_iterations;
                 summary.exact_hessian_iterations += report.stats.exact_iterations;
                 summary.exact_hessian_rejections += report.stats.exact_rejections;
+                summary.reused_hessians += report.stats.reused_hessians;
                 summary.pcg_iterations += report.stats.pcg_iterations;
                 summary.pcg_fallbacks += report.stats.pcg_fallbacks;
                 summary.friction_unconverged_steps += usize::from(!report.friction_converged);

@@ -3,7 +3,9 @@
 //! grid-to-particle and advection.
 
 use femp_kernels::transfer;
-use femp_solver::{HessianStrategy, LinearSolver, NewtonParams, Ordering, SolveStats, Threads};
+use femp_solver::{
+    Forcing, HessianStrategy, LinearSolver, NewtonParams, Ordering, SolveStats, Threads,
+};
 use nalgebra::{SMatrix, SVector};
 
 use crate::error::SimError;
@@ -46,10 +48,12 @@ fn add_stats(acc: &mut SolveStats, s: &SolveStats) {
     acc.regularizations += s.regularizations;
     acc.roundoff_stops += s.roundoff_stops;
     acc.exact_iterations += s.exact_iterations;
+    acc.reused_hessians += s.reused_hessians;
     acc.exact_rejections += s.exact_rejections;
     acc.symbolic_analyses += s.symbolic_analyses;
     acc.pcg_iterations += s.pcg_iterations;
     acc.pcg_fallbacks += s.pcg_fallbacks;
+    acc.pcg_tightened += s.pcg_tightened;
     acc.pcg_s += s.pcg_s;
     acc.assembly_s += s.assembly_s;
     acc.symbolic_s += s.symbolic_s;
@@ -129,8 +133,13 @@ impl<const D: usize> World<D> {
                 LinearSpec::Pcg => LinearSolver::Pcg {
                     rtol: self.scene.spec.solver.pcg_rtol,
                     max_iterations: self.scene.spec.solver.pcg_max_iterations,
+                    forcing: match self.scene.spec.solver.pcg_rtol_max {
+                        Some(max) => Forcing::Adaptive { max },
+                        None => Forcing::Fixed,
+                    },
                 },
             },
+            reuse_hessian_below: self.scene.spec.solver.reuse_hessian_below,
             ..Default::default()
         };
         let w = self.integrator.weight(dt);

@@ -149,6 +149,20 @@ fn non_physical_values_are_named() {
     expect_error(&v, &["solver.pcg_max_iterations", "must be at least 1"]);
 
     let mut v = base();
+    v["solver"] = json!({ "linear": "pcg", "pcg_rtol": 1e-6, "pcg_rtol_max": 1e-8 });
+    expect_error(
+        &v,
+        &["solver.pcg_rtol_max: 0.00000001 must be in [pcg_rtol, 1) = [0.000001, 1)"],
+    );
+
+    let mut v = base();
+    v["solver"] = json!({ "reuse_hessian_below": -1.0 });
+    expect_error(
+        &v,
+        &["solver.reuse_hessian_below: -1 must be finite and ≥ 0"],
+    );
+
+    let mut v = base();
     v["contact"]["friction"] = json!(-0.1);
     expect_error(&v, &["contact.friction", "non-negative"]);
 

@@ -173,6 +173,20 @@ fn mpm_fem_collision_conserves_linear_momentum() {
     let cg = run_scene(&scene(
         r#", "linear": "pcg", "projection": "when_indefinite""#,
     ));
+    // CG with Eisenstat–Walker forcing and Hessian reuse near convergence.
+    let lean = run_scene(&scene(
+        r#", "linear": "pcg", "projection": "when_indefinite", "pcg_rtol_max": 1e-2, "reuse_hessian_below": 1e-3"#,
+    ));
+    assert!(lean.summary.reused_hessians > 0, "{:?}", lean.summary);
+    let reused: usize = lean.metrics.iter().map(|m| m.reused_hessians).sum();
+    assert_eq!(reused, lean.summary.reused_hessians);
+    assert_eq!(cg.summary.reused_hessians, 0);
+    assert!(
+        lean.summary.pcg_iterations < cg.summary.pcg_iterations,
+        "{:?} vs {:?}",
+        lean.summary,
+        cg.summary
+    );
     assert_eq!(direct.summary.pcg_iterations, 0);
     assert!(direct.metrics.iter().all(|m| m.pcg_iterations == 0));
     assert!(
@@ -188,7 +202,7 @@ fn mpm_fem_collision_conserves_linear_momentum() {
             .iter()
             .all(|m| (m.newton_iterations == 0) == (m.pcg_iterations == 0))
     );
-    for r in [&direct, &cg] {
+    for r in [&direct, &cg, &lean] {
         let p0 = r.metrics[0].momentum;
         let scale = r.metrics[0].kinetic_energy.sqrt() * 30.0; // ~ Σ m |v|
         let mut touched = false;
@@ -206,9 +220,15 @@ fn mpm_fem_collision_conserves_linear_momentum() {
         }
         assert!(touched, "the disks never came into contact");
     }
-    // The same steps: both solves stop at ‖p‖∞/Δt < 1e-9 m/s.
+    // The same steps: all solves stop at ‖p‖∞/Δt < 1e-9 m/s.
     assert_eq!(direct.metrics.len(), cg.metrics.len());
-    for (a, b) in direct.metrics.iter().zip(&cg.metrics) {
+    assert_eq!(direct.metrics.len(), lean.metrics.len());
+    for (a, b) in direct
+        .metrics
+        .iter()
+        .zip(&cg.metrics)
+        .chain(direct.metrics.iter().zip(&lean.metrics))
+    {
         let de = (a.kinetic_energy - b.kinetic_energy).abs() / a.kinetic_energy;
         assert!(
             de < 1e-6,

@@ -40,7 +40,7 @@ pub use error::SolveError;
 pub use integrator::Integrator;
 pub use linear::{Cholesky, LinearError, LinearStats, Ordering, Threads};
 pub use newton::{
-    HessianStrategy, LinearSolver, Newton, NewtonParams, Objective, SolveStats, StepBound,
+    Forcing, HessianStrategy, LinearSolver, Newton, NewtonParams, Objective, SolveStats, StepBound,
     StepLimit,
 };
 pub use pcg::{Pcg, PcgOutcome};

@@ -8,6 +8,12 @@
 //! failures). The solve stops when `‖p‖_∞ / Δt < ε_d` (BFEMP §5: the Newton increment in
 //! velocity units).
 //!
+//! Two optional economies for the last iterations, both off by default
+//! ([`NewtonParams::reuse_hessian_below`], [`Forcing::Adaptive`]): once a full step's increment
+//! is small, the next iteration may solve with the previous iteration's matrix (no assembly, no
+//! factorisation — a Shamanskii step); and with conjugate gradients, each direction is solved
+//! only as accurately as Newton's convergence so far can use (Eisenstat–Walker forcing).
+//!
 //! Failures are errors carrying the statistics so far: a line search that cannot decrease the
 //! energy with `α` above a floor, the iteration limit, a non-finite energy or gradient, an
 //! unfactorisable Hessian.
@@ -68,6 +74,13 @@ pub trait Objective {
     fn exact_hessian(&mut self, _x: &[f64], _h: &mut Triplets) -> bool {
         false
     }
+    /// Whether the Hessian's terms (e.g. the active contact pairs) at the point of the last
+    /// [`Objective::gradient`] call are those of the last [`Objective::hessian`] or
+    /// [`Objective::exact_hessian`] call — the condition under which the solver may reuse that
+    /// Hessian ([`NewtonParams::reuse_hessian_below`]). Default `false`: never reused.
+    fn hessian_terms_unchanged(&mut self) -> bool {
+        false
+    }
     /// The largest feasible step along `p` (CCD, inversion); default: unlimited.
     fn max_step(&mut self, _x: &[f64], _p: &[f64]) -> StepBound {
         StepBound::UNLIMITED
@@ -112,6 +125,25 @@ pub enum LinearSolver {
         rtol: f64,
         /// Matrix products before falling back to Cholesky.
         max_iterations: usize,
+        /// How `rtol` is chosen per iteration.
+        forcing: Forcing,
+    },
+}
+
+/// How accurately conjugate gradients solve each Newton direction.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub enum Forcing {
+    /// Every direction to [`LinearSolver::Pcg`]'s `rtol`.
+    #[default]
+    Fixed,
+    /// Eisenstat–Walker (1996, choice 2, γ = 0.9, α = 2): iteration `k` asks for
+    /// `η_k = 0.9 (‖g_k‖/‖g_{k−1}‖)²` (safeguarded by `0.9 η_{k−1}²` while that exceeds 0.1),
+    /// clamped to `[rtol, max]`; the first iteration of a solve asks for `max`. Inexact Newton
+    /// keeps its local superlinear convergence with these terms while early directions — far
+    /// from the minimiser, where a precise solve buys nothing — cost fewer products.
+    Adaptive {
+        /// Largest relative reduction asked for (e.g. 1e-2).
+        max: f64,
     },
 }
 
@@ -138,6 +170,14 @@ pub struct NewtonParams {
     pub hessian: HessianStrategy,
     /// How the Newton direction is solved for.
     pub linear: LinearSolver,
+    /// Reuse the previous iteration's Hessian (its CSC matrix for CG, its factorisation for
+    /// Cholesky) when that iteration took the full step, its increment `‖p‖_∞/dt` was below this
+    /// (velocity units, like `tolerance`), no prescribed DOF is still on its way and the
+    /// objective reports the same Hessian terms ([`Objective::hessian_terms_unchanged`]); the
+    /// gradient is always new. Near the minimiser the reused matrix differs from the current
+    /// Hessian by `O(‖Δx‖)`, so the direction (and the convergence test on it) is Newton's to
+    /// that relative order. `0` (the default): every iteration assembles its own.
+    pub reuse_hessian_below: f64,
 }
 
 impl Default for NewtonParams {
@@ -153,6 +193,7 @@ impl Default for NewtonParams {
             threads: Threads::Auto,
             hessian: HessianStrategy::Projected,
             linear: LinearSolver::Cholesky,
+            reuse_hessian_below: 0.0,
         }
     }
 }
@@ -185,6 +226,9 @@ pub struct SolveStats {
     pub regularizations: usize,
     /// Iterations that used the exact Hessian ([`HessianStrategy::ExactWhenDefinite`]).
     pub exact_iterations: usize,
+    /// Iterations that reused the previous iteration's Hessian
+    /// ([`NewtonParams::reuse_hessian_below`]); they assembled no Hessian.
+    pub reused_hessians: usize,
     /// Exact Hessians found indefinite (those iterations used the projected one).
     pub exact_rejections: usize,
     /// Solves ended as stationary to working precision before `‖p‖_∞/Δt` reached the
@@ -197,6 +241,9 @@ pub struct SolveStats {
     pub pcg_iterations: usize,
     /// Directions that CG did not deliver on a projected Hessian and Cholesky did.
     pub pcg_fallbacks: usize,
+    /// Loosely solved directions ([`Forcing::Adaptive`]) solved again to `rtol` because they
+    /// passed the convergence test.
+    pub pcg_tightened: usize,
     /// Seconds in conjugate gradients.
     pub pcg_s: f64,
     /// Seconds assembling gradient and Hessian (objective calls and CSC build). Work, not wall
@@ -375,35 +422,68 @@ impl Newton {
         let (mut rejected_in_a_row, mut wait) = (0u32, 0u64);
         // CG gave up on a projected Hessian in this solve: the rest of it uses Cholesky.
         let mut cg_gave_up = false;
+        // The matrix (CSC, and factorisation on the Cholesky path) the last iteration solved
+        // with, if it may be reused: `Some(exact)` after a full step.
+        let mut held: Option<bool> = None;
+        // Eisenstat–Walker state: the last free gradient norm and forcing term.
+        let (mut last_gnorm, mut last_eta) = (0.0f64, 0.0f64);
         for _ in 0..params.max_iterations {
             stats.iterations += 1;
             let t = Instant::now();
             obj.begin_iteration(x);
-            // The Hessian first; then its factorisation runs on another thread while this one
-            // computes the gradient (the exact Hessian's, if tried; the projected one after a
-            // rejection is factorised afterwards).
-            let try_exact = exact_wanted && wait == 0;
-            wait = wait.saturating_sub(1);
-            self.triplets.clear();
-            let exact = try_exact && obj.exact_hessian(x, &mut self.triplets);
-            if try_exact && !exact {
-                wait = u64::MAX;
-            }
-            if !exact {
-                self.triplets.clear();
-                obj.hessian(x, &mut self.triplets);
-            }
-            let hessian_s = t.elapsed().as_secs_f64();
-            let mut factor_result = None;
-            let mut gradient_s = 0.0;
             let pcg = match params.linear {
                 LinearSolver::Pcg {
                     rtol,
                     max_iterations,
-                } if !cg_gave_up => Some((rtol, max_iterations)),
+                    forcing,
+                } if !cg_gave_up => Some((rtol, max_iterations, forcing)),
                 _ => None,
             };
-            {
+            // Reuse the last matrix? Only after a full step with a small increment, with every
+            // prescribed DOF at its target; the gradient comes first, then the objective says
+            // whether the Hessian's terms are still those of that matrix.
+            let mut have_gradient = false;
+            let mut reuse = None;
+            if let Some(held_exact) = held.filter(|_| {
+                stats.final_residual < params.reuse_hessian_below
+                    && (0..n).all(|d| !fixed[d] || x[d] == target[d])
+            }) {
+                // (Timed with the Hessian below: both are assembly.)
+                self.g.iter_mut().for_each(|v| *v = 0.0);
+                obj.gradient(x, &mut self.g);
+                have_gradient = true;
+                if obj.hessian_terms_unchanged() {
+                    reuse = Some(held_exact);
+                    stats.reused_hessians += 1;
+                }
+            }
+            // Otherwise the Hessian first; then its factorisation runs on another thread while
+            // this one computes the gradient (the exact Hessian's, if tried; the projected one
+            // after a rejection is factorised afterwards).
+            let exact = match reuse {
+                Some(exact) => exact,
+                None => {
+                    let try_exact = exact_wanted && wait == 0;
+                    wait = wait.saturating_sub(1);
+                    self.triplets.clear();
+                    let exact = try_exact && obj.exact_hessian(x, &mut self.triplets);
+                    if try_exact && !exact {
+                        wait = u64::MAX;
+                    }
+                    if !exact {
+                        self.triplets.clear();
+                        obj.hessian(x, &mut self.triplets);
+                    }
+                    exact
+                }
+            };
+            let hessian_s = t.elapsed().as_secs_f64();
+            let mut factor_result = None;
+            let mut gradient_s = 0.0;
+            if reuse.is_some() {
+                // The matrix and factorisation in `lin` are the last iteration's.
+                factor_result = Some(Ok(true));
+            } else {
                 let (lin, triplets, free) = (&mut self.lin, &self.triplets, &self.free);
                 let g = &mut self.g;
                 let mut factor = move || {
@@ -420,6 +500,9 @@ impl Newton {
                     }
                 };
                 let mut gradient = || {
+                    if have_gradient {
+                        return;
+                    }
                     let t = Instant::now();
                     g.iter_mut().for_each(|v| *v = 0.0);
                     obj.gradient(x, g);
@@ -458,13 +541,38 @@ impl Newton {
             // With CG: solve now (the exact Hessian is rejected if CG meets non-positive
             // curvature or does not converge); a projected Hessian CG cannot do is factorised.
             let mut solved = false;
-            if let Some((rtol, max_it)) = pcg {
+            let mut loose = false;
+            // Whether the matrix this iteration solves with is the exact Hessian.
+            let solved_exact;
+            if let Some((rtol, max_it, forcing)) = pcg {
+                let eta = match forcing {
+                    Forcing::Fixed => rtol,
+                    Forcing::Adaptive { max } => {
+                        let gnorm = self
+                            .free_dofs
+                            .iter()
+                            .map(|&d| self.g[d] * self.g[d])
+                            .sum::<f64>()
+                            .sqrt();
+                        let mut eta = if last_gnorm > 0.0 {
+                            0.9 * (gnorm / last_gnorm).powi(2)
+                        } else {
+                            max
+                        };
+                        if 0.9 * last_eta * last_eta > 0.1 {
+                            eta = eta.max(0.9 * last_eta * last_eta);
+                        }
+                        let eta = eta.min(max).max(rtol);
+                        (last_gnorm, last_eta) = (gnorm, eta);
+                        eta
+                    }
+                };
                 for attempt in 0..2 {
                     self.prescribed_part(fixed, target, x);
                     let t = Instant::now();
                     let out = self
                         .pcg
-                        .solve(&self.lin.csc, &self.rhs, &mut self.sol, rtol, max_it);
+                        .solve(&self.lin.csc, &self.rhs, &mut self.sol, eta, max_it);
                     stats.pcg_s += t.elapsed().as_secs_f64();
                     stats.pcg_iterations += out.iterations();
                     if out.converged() {
@@ -486,10 +594,39 @@ impl Newton {
                     stats.assembly_s +=
                         t.elapsed().as_secs_f64() + std::mem::take(&mut self.lin.csc_s);
                 }
+                // A loosely solved direction that would pass the convergence test is solved
+                // again to `rtol`: CG's iterates grow in norm, so a loose one understates ‖p‖.
+                if solved && eta > rtol {
+                    let fixed_max = (0..n)
+                        .filter(|&d| fixed[d])
+                        .fold(0.0f64, |m, d| m.max(self.p[d].abs()));
+                    let free_max = self.rhs.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+                    if fixed_max.max(free_max) / params.dt < params.tolerance {
+                        // The loose solution waits in `trial` (free until the line search).
+                        self.trial[..nf].copy_from_slice(&self.rhs);
+                        self.prescribed_part(fixed, target, x);
+                        let t = Instant::now();
+                        let out =
+                            self.pcg
+                                .solve(&self.lin.csc, &self.rhs, &mut self.sol, rtol, max_it);
+                        stats.pcg_s += t.elapsed().as_secs_f64();
+                        stats.pcg_iterations += out.iterations();
+                        stats.pcg_tightened += 1;
+                        if out.converged() {
+                            self.rhs.copy_from_slice(&self.sol);
+                        } else {
+                            // Keep the loose direction (a descent direction all the same),
+                            // but it cannot end the solve.
+                            loose = true;
+                            self.rhs.copy_from_slice(&self.trial[..nf]);
+                        }
+                    }
+                }
                 if exact && factorized {
                     stats.exact_iterations += 1;
                     rejected_in_a_row = 0;
                 }
+                solved_exact = exact && factorized;
                 if !solved {
                     // Cholesky of the (projected) matrix already built, and for the rest of the
                     // solve: its Hessians are alike.
@@ -520,6 +657,7 @@ impl Newton {
                         reject_exact(&mut stats, &mut rejected_in_a_row, &mut wait);
                     }
                 }
+                solved_exact = exact && factorized;
                 if !factorized {
                     let t = Instant::now();
                     self.triplets.clear();
@@ -568,7 +706,7 @@ impl Newton {
             }
             stats.final_residual = pmax / params.dt;
             let at_targets = (0..n).all(|d| !fixed[d] || x[d] == target[d]);
-            let converged = at_targets && stats.final_residual < params.tolerance;
+            let converged = at_targets && !loose && stats.final_residual < params.tolerance;
             // Stagnation at round-off: the predicted decrease is below the energy's round-off
             // and ‖p‖ has stopped shrinking (Newton near a minimum shrinks it quadratically).
             // The iterate is stationary to working precision although ‖p‖ is not small: p lies
@@ -639,6 +777,8 @@ impl Newton {
                 finish(&mut stats, &self.lin.chol, e);
                 return Ok(stats);
             }
+            held = (params.reuse_hessian_below > 0.0 && accepted.is_some() && alpha == 1.0)
+                .then_some(solved_exact);
             match accepted {
                 Some(et) => {
                     x.copy_from_slice(&self.trial);

@@ -250,6 +250,23 @@ pub fn validate(s: &SceneSpec) -> Result<(), SimError> {
     if s.solver.pcg_max_iterations == 0 {
         return Err(invalid("solver.pcg_max_iterations", "must be at least 1"));
     }
+    if let Some(max) = s.solver.pcg_rtol_max
+        && !(max >= s.solver.pcg_rtol && max < 1.0)
+    {
+        return Err(invalid(
+            "solver.pcg_rtol_max",
+            format!(
+                "{max} must be in [pcg_rtol, 1) = [{}, 1)",
+                s.solver.pcg_rtol
+            ),
+        ));
+    }
+    if !(s.solver.reuse_hessian_below >= 0.0 && s.solver.reuse_hessian_below.is_finite()) {
+        return Err(invalid(
+            "solver.reuse_hessian_below",
+            format!("{} must be finite and ≥ 0", s.solver.reuse_hessian_below),
+        ));
+    }
     if s.bodies.is_empty() {
         return Err(invalid("bodies", "the scene has no bodies"));
     }

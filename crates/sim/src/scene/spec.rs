@@ -211,6 +211,13 @@ pub struct SolverSpec {
     pub pcg_rtol: f64,
     /// With `linear: "pcg"`: CG iterations before falling back to Cholesky.
     pub pcg_max_iterations: usize,
+    /// With `linear: "pcg"`: the largest relative reduction an iteration asks of CG, the
+    /// Eisenstat–Walker forcing term choosing between it and `pcg_rtol` (`None`: every
+    /// iteration to `pcg_rtol`).
+    pub pcg_rtol_max: Option<f64>,
+    /// Reuse the last Newton iteration's Hessian after a full step whose increment
+    /// ‖p‖∞/Δt was below this (m/s) while the contact set is unchanged (0: never).
+    pub reuse_hessian_below: f64,
 }
 
 /// The Newton direction's linear solver (`solver.linear`).
@@ -246,6 +253,8 @@ impl Default for SolverSpec {
             linear: LinearSpec::Cholesky,
             pcg_rtol: 1e-6,
             pcg_max_iterations: 200,
+            pcg_rtol_max: None,
+            reuse_hessian_below: 0.0,
         }
     }
 }
