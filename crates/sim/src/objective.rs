@@ -237,6 +237,7 @@ pub struct StepObjective<'a, const D: usize> {
     /// ([`terms_key`]), for [`Objective::hessian_terms_unchanged`].
     grad_terms: u64,
     hess_terms: Option<u64>,
+    bound_scratch: BoundScratch<D>,
 }
 
 /// A fingerprint of the active barrier terms (pair, particle, feature vertices, in order): equal
@@ -315,6 +316,7 @@ impl<'a, const D: usize> StepObjective<'a, D> {
             last_contacts: (0, f64::INFINITY),
             grad_terms: 0,
             hess_terms: None,
+            bound_scratch: BoundScratch::default(),
         }
     }
 
@@ -990,11 +992,13 @@ impl<const D: usize> Objective for StepObjective<'_, D> {
         self.unpack(x);
         let clock = Instant::now();
         // Particle displacements along p (for CCD) and grid increments (for det F).
-        let mut dq: Vec<SVector<f64, D>> = Vec::new();
-        let mut pg: Vec<SVector<f64, D>> = Vec::new();
+        let mut sc = std::mem::take(&mut self.bound_scratch);
+        let (mut pg, mut dq) = (std::mem::take(&mut sc.pg), std::mem::take(&mut sc.dq));
+        pg.clear();
+        dq.clear();
         if let Some(m) = self.mpm {
-            pg = (0..self.n_grid).map(|i| Self::v(p, i)).collect();
-            dq = vec![SVector::zeros(); m.x.len()];
+            pg.extend((0..self.n_grid).map(|i| Self::v(p, i)));
+            dq.resize(m.x.len(), SVector::zeros());
             let _ = transfer::interpolate(&m.stencils, &pg, &mut dq);
         }
         let setup_s = clock.elapsed().as_secs_f64();
@@ -1007,12 +1011,14 @@ impl<const D: usize> Objective for StepObjective<'_, D> {
             },
             || {
                 let t = Instant::now();
-                let fem = this.element_det_bound(p);
+                let fem = this.element_det_bound(p, &mut sc.pb);
                 let fem_s = t.elapsed().as_secs_f64();
-                let ccd = this.ccd_bound(p, &dq);
+                let ccd = this.ccd_bound(p, &dq, &mut sc);
                 (fem, fem_s, ccd, t.elapsed().as_secs_f64() - fem_s)
             },
         );
+        (sc.pg, sc.dq) = (pg, dq);
+        self.bound_scratch = sc;
         self.timing.inversion_s += setup_s + mpm_s + fem_s;
         self.timing.ccd_s += ccd_s;
         let mut best = StepBound::UNLIMITED;
@@ -1055,17 +1061,19 @@ impl<const D: usize> StepObjective<'_, D> {
     }
 
     /// The same for the FEM elements (free bodies) along `p`.
-    fn element_det_bound(&self, p: &[f64]) -> f64 {
+    fn element_det_bound(&self, p: &[f64], pb: &mut Vec<SVector<f64, D>>) -> f64 {
         let mut best = 1.0f64;
         for (b, body) in self.fem.iter().enumerate() {
             if body.fully_prescribed {
                 continue;
             }
             let off = self.fem_offset[b];
-            let pb: Vec<SVector<f64, D>> = (0..body.x.len())
-                .map(|v| SVector::from_column_slice(&p[off + v * D..off + v * D + D]))
-                .collect();
-            if let Ok(a) = body.elastic.max_inversion_free_step(&self.fem_x[b], &pb) {
+            pb.clear();
+            pb.extend(
+                (0..body.x.len())
+                    .map(|v| SVector::from_column_slice(&p[off + v * D..off + v * D + D])),
+            );
+            if let Ok(a) = body.elastic.max_inversion_free_step(&self.fem_x[b], pb) {
                 best = best.min(a);
             }
         }
@@ -1074,49 +1082,75 @@ impl<const D: usize> StepObjective<'_, D> {
 
     /// The largest step fraction (≤ 1) before a point of any pair meets a facet (CCD), the
     /// particles moving by `dq`.
-    fn ccd_bound(&self, p: &[f64], dq: &[SVector<f64, D>]) -> f64 {
+    fn ccd_bound(&self, p: &[f64], dq: &[SVector<f64, D>], sc: &mut BoundScratch<D>) -> f64 {
         let mut best = 1.0f64;
-        let mut take = |alpha: f64, _limit: StepLimit| best = best.min(alpha);
+        let dof = |off: usize, v: usize| {
+            SVector::<f64, D>::from_column_slice(&p[off + v * D..off + v * D + D])
+        };
         // CCD of every pair along the full step.
         for pair in self.pairs {
             let x0 = self.points(pair);
-            let dx: Cow<'_, [SVector<f64, D>]> = match &pair.points {
-                Points::Mpm { range } => Cow::Borrowed(&dq[range.0..range.1]),
+            let dx: &[SVector<f64, D>] = match &pair.points {
+                Points::Mpm { range } => &dq[range.0..range.1],
                 Points::Fem { body } => {
                     let off = self.fem_offset[*body];
-                    Cow::Owned(
+                    sc.dx.clear();
+                    sc.dx.extend(
                         self.fem[*body]
                             .boundary
                             .vertices()
                             .iter()
-                            .map(|&v| SVector::from_column_slice(&p[off + v * D..off + v * D + D]))
-                            .collect(),
-                    )
+                            .map(|&v| dof(off, v)),
+                    );
+                    &sc.dx
                 }
             };
             let fb = pair.facets_of;
             let off = self.fem_offset[fb];
             let bx = &self.fem_x[fb];
-            let bdx: Vec<SVector<f64, D>> = (0..bx.len())
-                .map(|v| SVector::from_column_slice(&p[off + v * D..off + v * D + D]))
-                .collect();
-            let x1: Vec<_> = x0.iter().zip(dx.iter()).map(|(a, b)| a + b).collect();
-            let b1: Vec<_> = bx.iter().zip(&bdx).map(|(a, b)| a + b).collect();
-            let mut cands = Candidates::default();
-            broad_phase::candidates_swept(&x0, &x1, bx, &b1, &self.fem[fb].facets, 0.0, &mut cands);
+            sc.bdx.clear();
+            sc.bdx.extend((0..bx.len()).map(|v| dof(off, v)));
+            sc.x1.clear();
+            sc.x1.extend(x0.iter().zip(dx).map(|(a, b)| a + b));
+            sc.b1.clear();
+            sc.b1.extend(bx.iter().zip(&sc.bdx).map(|(a, b)| a + b));
+            broad_phase::candidates_swept(
+                &x0,
+                &sc.x1,
+                bx,
+                &sc.b1,
+                &self.fem[fb].facets,
+                0.0,
+                &mut sc.cands,
+            );
             let (alpha, _) = ccd::max_step(
                 &x0,
-                &dx,
+                dx,
                 bx,
-                &bdx,
+                &sc.bdx,
                 &self.fem[fb].facets,
-                &cands,
+                &sc.cands,
                 &CcdOptions::default(),
             );
-            take(alpha, StepLimit::Ccd);
+            best = best.min(alpha);
         }
         best
     }
+}
+
+/// Buffers of [`Objective::max_step`], kept across Newton iterations: grid increments, particle
+/// displacements, and per pair the moving points' and facets' increments and end positions and
+/// the swept broad phase's candidates.
+#[derive(Default)]
+struct BoundScratch<const D: usize> {
+    pg: Vec<SVector<f64, D>>,
+    dq: Vec<SVector<f64, D>>,
+    pb: Vec<SVector<f64, D>>,
+    dx: Vec<SVector<f64, D>>,
+    bdx: Vec<SVector<f64, D>>,
+    x1: Vec<SVector<f64, D>>,
+    b1: Vec<SVector<f64, D>>,
+    cands: Candidates,
 }
 
 #[cfg(test)]
