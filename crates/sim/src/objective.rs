@@ -1069,10 +1069,7 @@ impl<const D: usize> StepObjective<'_, D> {
             }
             let off = self.fem_offset[b];
             pb.clear();
-            pb.extend(
-                (0..body.x.len())
-                    .map(|v| SVector::from_column_slice(&p[off + v * D..off + v * D + D])),
-            );
+            pb.extend((0..body.x.len()).map(|v| Self::v(&p[off..], v)));
             if let Ok(a) = body.elastic.max_inversion_free_step(&self.fem_x[b], pb) {
                 best = best.min(a);
             }
@@ -1084,9 +1081,6 @@ impl<const D: usize> StepObjective<'_, D> {
     /// particles moving by `dq`.
     fn ccd_bound(&self, p: &[f64], dq: &[SVector<f64, D>], sc: &mut BoundScratch<D>) -> f64 {
         let mut best = 1.0f64;
-        let dof = |off: usize, v: usize| {
-            SVector::<f64, D>::from_column_slice(&p[off + v * D..off + v * D + D])
-        };
         // CCD of every pair along the full step.
         for pair in self.pairs {
             let x0 = self.points(pair);
@@ -1100,7 +1094,7 @@ impl<const D: usize> StepObjective<'_, D> {
                             .boundary
                             .vertices()
                             .iter()
-                            .map(|&v| dof(off, v)),
+                            .map(|&v| Self::v(&p[off..], v)),
                     );
                     &sc.dx
                 }
@@ -1109,7 +1103,7 @@ impl<const D: usize> StepObjective<'_, D> {
             let off = self.fem_offset[fb];
             let bx = &self.fem_x[fb];
             sc.bdx.clear();
-            sc.bdx.extend((0..bx.len()).map(|v| dof(off, v)));
+            sc.bdx.extend((0..bx.len()).map(|v| Self::v(&p[off..], v)));
             sc.x1.clear();
             sc.x1.extend(x0.iter().zip(dx).map(|(a, b)| a + b));
             sc.b1.clear();

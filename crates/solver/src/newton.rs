@@ -426,7 +426,7 @@ impl Newton {
         // with, if it may be reused: `Some(exact)` after a full step.
         let mut held: Option<bool> = None;
         // Eisenstat–Walker state: the last free gradient norm and forcing term.
-        let (mut last_gnorm, mut last_eta) = (0.0f64, 0.0f64);
+        let mut last_forcing = (0.0f64, 0.0f64);
         for _ in 0..params.max_iterations {
             stats.iterations += 1;
             let t = Instant::now();
@@ -554,17 +554,7 @@ impl Newton {
                             .map(|&d| self.g[d] * self.g[d])
                             .sum::<f64>()
                             .sqrt();
-                        let mut eta = if last_gnorm > 0.0 {
-                            0.9 * (gnorm / last_gnorm).powi(2)
-                        } else {
-                            max
-                        };
-                        if 0.9 * last_eta * last_eta > 0.1 {
-                            eta = eta.max(0.9 * last_eta * last_eta);
-                        }
-                        let eta = eta.min(max).max(rtol);
-                        (last_gnorm, last_eta) = (gnorm, eta);
-                        eta
+                        forcing_term(gnorm, &mut last_forcing, rtol, max)
                     }
                 };
                 for attempt in 0..2 {
@@ -855,6 +845,25 @@ impl Newton {
 /// Book an exact Hessian found indefinite: try again next iteration after a first rejection,
 /// then back off (wait 1, 3, 7, … iterations): a solve whose exact Hessian stays indefinite
 /// wastes O(log iterations) tries.
+/// The Eisenstat–Walker forcing term (choice 2, γ = 0.9, α = 2) for a free gradient of norm
+/// `gnorm`, given the last iteration's `(gradient norm, term)` (`(0, 0)` in a solve's first
+/// iteration, which gets `max`), clamped to `[rtol, max]`; updates `last`.
+fn forcing_term(gnorm: f64, last: &mut (f64, f64), rtol: f64, max: f64) -> f64 {
+    let (last_gnorm, last_eta) = *last;
+    let mut eta = if last_gnorm > 0.0 {
+        0.9 * (gnorm / last_gnorm).powi(2)
+    } else {
+        max
+    };
+    // Safeguard: do not drop much faster than the last term while that is large.
+    if 0.9 * last_eta * last_eta > 0.1 {
+        eta = eta.max(0.9 * last_eta * last_eta);
+    }
+    let eta = eta.min(max).max(rtol);
+    *last = (gnorm, eta);
+    eta
+}
+
 fn reject_exact(stats: &mut SolveStats, rejected_in_a_row: &mut u32, wait: &mut u64) {
     stats.exact_rejections += 1;
     *rejected_in_a_row += 1;
