@@ -18,7 +18,7 @@
 //! Momentum conservation is structural: every term of the correction is `G` applied to some
 //! field, and `G` maps every field to one with zero net linear momentum (PIC) and zero net
 //! angular momentum (APIC), so the sum has none either — property-tested in
-//! `tests/conservation.rs`.
+//! `tests/integration/conservation.rs`.
 
 mod contact;
 mod error;

@@ -41,7 +41,7 @@
 //! `(2 − |r|)²/4` for `1 ≤ |r| < 2`: C¹, non-negative, support `4h`.
 //!
 //! Both kernels are tested for partition of unity, linear completeness, the constant second
-//! moment and derivatives against finite differences (`tests/spline.rs`).
+//! moment and derivatives against finite differences (`tests/integration/spline.rs`).
 
 use nalgebra::SVector;
 

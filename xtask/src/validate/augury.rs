@@ -581,7 +581,7 @@ fn tau_label(steps: f64) -> String {
 /// (4 × 0.25 × 1.5, bottom fixed) and 1 × 1 × 1 block, ρ = 1e6, E = 1e10, ν = 0.3, μ = 0.2,
 /// g = 100 tilted by 30° (the ramp lies flat, gravity is turned), grid 0.5 h, Δt = 2.5e-5 h;
 /// one augury iteration with τ = Δt (the paper), ten with τ = Δt, and ten with τ = 2.5e-4 h
-/// (the 2D rows' τ; the look-ahead, not Δt, sets the error: `crates/augury/tests/ramp.rs`).
+/// (the 2D rows' τ; the look-ahead, not Δt, sets the error: `crates/augury/tests/integration/ramp.rs`).
 fn ramp_3d(ctx: &Ctx, out: &mut Outcome, series: &mut Vec<Series>) -> Result<()> {
     let hs: &[f64] = match ctx.tier {
         Tier::Quick => &[1.0, 0.5],
@@ -700,7 +700,7 @@ fn ramp_3d(ctx: &Ctx, out: &mut Outcome, series: &mut Vec<Series>) -> Result<()>
     out.notes.push(format!(
         "3D rows: the paper's ramp scene through `femp run` (`fixtures/scenes/augury_ramp_3d.json`, \
          the ramp flat and gravity turned by 30°, which is the same problem), h ∈ {hs:?}, \
-         displacement of the block's centre of mass along the ramp at t = {t_end} s,          Δt = 2.5e-5 h (the paper's). The look-ahead τ, not Δt, sets the error (2D:          `crates/augury/tests/ramp.rs`): with the paper's τ = Δt the block sticks with one          iteration and the error stops shrinking with ten; with τ = 10 Δt = 2.5e-4 h (the 2D          rows' τ) it converges under refinement."
+         displacement of the block's centre of mass along the ramp at t = {t_end} s,          Δt = 2.5e-5 h (the paper's). The look-ahead τ, not Δt, sets the error (2D:          `crates/augury/tests/integration/ramp.rs`): with the paper's τ = Δt the block sticks with one          iteration and the error stops shrinking with ten; with τ = 10 Δt = 2.5e-4 h (the 2D          rows' τ) it converges under refinement."
     ));
     Ok(())
 }

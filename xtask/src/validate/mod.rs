@@ -373,8 +373,9 @@ struct Experiment {
     section: &'static str,
     title: &'static str,
     run: fn(&Ctx) -> Result<Outcome>,
-    /// Quick-tier wall time measured in CI (clean clone at 9e5dc73, 2-core Intel Xeon 2.0 GHz):
-    /// balances `--jobs` when the output directory has no saved outcome to go by.
+    /// Quick-tier wall time measured in CI (clean clone at a5494da, 2-core Intel Xeon 2.0 GHz;
+    /// twist and buckling as trimmed on 2026-12-03, measured with `--only twist buckling
+    /// --jobs 2`): balances `--jobs` when the output directory has no saved outcome to go by.
     quick_s: f64,
 }
 
@@ -546,49 +547,49 @@ const EXPERIMENTS: &[Experiment] = &[
         section: "BFEMP 6.1",
         title: "MPM ring vs FEM ring at 40 m/s: momentum, energy, non-penetration",
         run: rings::run,
-        quick_s: 113.0,
+        quick_s: 180.0,
     },
     Experiment {
         name: "sine_boundary",
         section: "BFEMP 6.2",
         title: "FEM sine-wave boundary vs level-set slip boundary",
         run: sine::run,
-        quick_s: 74.0,
+        quick_s: 110.0,
     },
     Experiment {
         name: "hertz",
         section: "BFEMP 6.3",
         title: "Brazilian disk: force vs contact radius against 2D Hertz",
         run: hertz::run,
-        quick_s: 13.0,
+        quick_s: 20.0,
     },
     Experiment {
         name: "slope",
         section: "BFEMP 6.4",
         title: "Stiff MPM box on a frictional FEM slope: g(sinθ − μcosθ), sticking at μ = tanθ",
         run: slope::run,
-        quick_s: 21.0,
+        quick_s: 42.0,
     },
     Experiment {
         name: "refinement",
         section: "BFEMP 6.5",
         title: "MPM box on FEM box under refinement: convergence order",
         run: refinement::run,
-        quick_s: 34.0,
+        quick_s: 54.0,
     },
     Experiment {
         name: "buckling",
         section: "BFEMP 6.6",
         title: "Semicircular rings compressed: buckling order vs μ",
         run: buckling::run,
-        quick_s: 219.0,
+        quick_s: 176.0,
     },
     Experiment {
         name: "twist",
         section: "BFEMP 6.7",
         title: "3D shell twisting an MPM cube: slip angles vs μ",
         run: twist::run,
-        quick_s: 245.0,
+        quick_s: 158.0,
     },
     Experiment {
         name: "two_particles",
@@ -602,35 +603,35 @@ const EXPERIMENTS: &[Experiment] = &[
         section: "augury 3.2",
         title: "Two blocks impacting at an angle: exact momenta",
         run: augury::blocks_impact,
-        quick_s: 24.0,
+        quick_s: 32.0,
     },
     Experiment {
         name: "ramp",
         section: "augury 3.3",
         title: "Block sliding down a 30° ramp",
         run: augury::ramp_experiment,
-        quick_s: 38.0,
+        quick_s: 41.0,
     },
     Experiment {
         name: "compare",
         section: "both papers",
         title: "Speed vs accuracy: block sliding down a ramp, BFEMP / augury / penalty",
         run: compare::run,
-        quick_s: 76.0,
+        quick_s: 90.0,
     },
     Experiment {
         name: "disk_plates",
         section: "both papers",
         title: "Speed vs accuracy: a disk pressed between plates (Hertz), BFEMP / augury / penalty",
         run: disk::run,
-        quick_s: 68.0,
+        quick_s: 86.0,
     },
     Experiment {
         name: "stability",
         section: "both papers",
         title: "Stability maps: time step against impact speed",
         run: stability::run,
-        quick_s: 6.0,
+        quick_s: 7.0,
     },
 ];
 
