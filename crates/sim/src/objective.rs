@@ -133,19 +133,33 @@ impl<const D: usize> GridHessian<D> {
         );
     }
 
-    /// Append the stored blocks to `h` as triplets, node by node and slot by slot (the order a
-    /// sequential loop gives), nodes in parallel.
+    /// Append the stored blocks' upper triangle to `h` as triplets, node by node and slot by slot
+    /// (the order a sequential loop gives), nodes in parallel. The lower triangle is left out:
+    /// the solver drops it (femp-solver's `Objective::hessian` contract), and it was half of
+    /// the grid's triplets to write, compare and skip in every Hessian build.
     fn emit(&self, h: &mut Triplets, counts: &mut Vec<usize>) {
         const NODES_PER_TASK: usize = 64;
         let slots = self.slots;
         let n_nodes = self.rows.len().checked_div(slots).unwrap_or(0);
-        // Entries per task of consecutive nodes.
+        // Entries per task of consecutive nodes: the upper triangle only (the solver ignores
+        // entries below the diagonal), so a block to a later node in full, the node's own block
+        // on and above its diagonal, none to an earlier node (or an empty slot).
+        let upper = |i: usize, b: &HBlock<D>| match b.nbr as usize {
+            n if b.nbr == u32::MAX || n < i => 0,
+            n if n == i => D * (D + 1) / 2,
+            _ => D * D,
+        };
         counts.clear();
-        counts.extend(
-            self.rows
-                .chunks(slots.max(1) * NODES_PER_TASK)
-                .map(|c| c.iter().filter(|b| b.nbr != u32::MAX).count() * D * D),
-        );
+        counts.extend((0..n_nodes).step_by(NODES_PER_TASK).map(|first| {
+            (first..(first + NODES_PER_TASK).min(n_nodes))
+                .map(|i| {
+                    self.rows[i * slots..(i + 1) * slots]
+                        .iter()
+                        .map(|b| upper(i, b))
+                        .sum::<usize>()
+                })
+                .sum::<usize>()
+        }));
         let total: usize = counts.iter().sum();
         h.append_with(total, |rows, cols, vals| {
             let mut parts = Vec::with_capacity(counts.len());
@@ -163,11 +177,12 @@ impl<const D: usize> GridHessian<D> {
                 let mut k = 0;
                 for i in first..last {
                     for b in &self.rows[i * slots..(i + 1) * slots] {
-                        if b.nbr == u32::MAX {
+                        if b.nbr == u32::MAX || (b.nbr as usize) < i {
                             continue;
                         }
+                        let own = b.nbr as usize == i;
                         for rr in 0..D {
-                            for cc in 0..D {
+                            for cc in if own { rr..D } else { 0..D } {
                                 r[k] = (i * D + rr) as u32;
                                 c[k] = (b.nbr as usize * D + cc) as u32;
                                 v[k] = b.m[(rr, cc)];
@@ -480,7 +495,7 @@ impl<'a, const D: usize> StepObjective<'a, D> {
         }
         for p in self.penalties {
             for a in 0..D {
-                for b in 0..D {
+                for b in a..D {
                     h.push(p.node * D + a, p.node * D + b, p.k * p.n[a] * p.n[b]);
                 }
             }
@@ -539,8 +554,9 @@ impl<'a, const D: usize> StepObjective<'a, D> {
                 el.hessian_triplets(&self.fem_x[b], w, self.fem_offset[b], &mut trip)
             };
             if built.is_ok() {
-                h.reserve(trip.len());
-                for t in &trip {
+                // The upper triangle only: the solver drops the rest (as for the grid's).
+                h.reserve(trip.len() / 2 + trip.len() / 8);
+                for t in trip.iter().filter(|t| t.row <= t.col) {
                     h.push(t.row, t.col, t.value);
                 }
             }
@@ -1283,6 +1299,12 @@ mod tests {
         let mut t = Triplets::default();
         obj.hessian(&x, &mut t);
         assert_eq!(obj.last_contacts.0, 0, "scene must be contact-free");
+        // Without contact terms, the grid's and the elements' blocks come as their upper
+        // triangle only (the solver ignores the rest; half the triplets to assemble).
+        assert!(
+            t.iter().all(|(r, c, _)| r <= c),
+            "a triplet below the diagonal"
+        );
         assert_gradient_derivative(&mut obj, &x, &dense(&t, n), 1e-6);
     }
 
@@ -1378,10 +1400,15 @@ mod tests {
         check_exact_hessian::<3>(&SCENE_3D.replace("\"friction\": 0.4", "\"friction\": 0"));
     }
 
+    /// The symmetric matrix the solver sees: the triplets' upper triangle, mirrored (entries
+    /// below the diagonal are ignored by the solver, and the grid Hessian leaves them out).
     fn dense(t: &Triplets, n: usize) -> Vec<f64> {
         let mut hd = vec![0.0; n * n];
-        for (r, c, v) in t.iter() {
+        for (r, c, v) in t.iter().filter(|&(r, c, _)| r <= c) {
             hd[r * n + c] += v;
+            if r != c {
+                hd[c * n + r] += v;
+            }
         }
         hd
     }

@@ -65,8 +65,10 @@ pub trait Objective {
     /// `∇E(x)` into `g` (overwrite). In a Newton iteration it is called *after* the Hessian
     /// at the same `x` (the solver factorises the Hessian on another thread meanwhile).
     fn gradient(&mut self, x: &[f64], g: &mut [f64]);
-    /// A positive semi-definite approximation of `∇²E(x)` as **full symmetric** triplets
-    /// (both triangles), appended to `h` (cleared by the caller).
+    /// A positive semi-definite approximation of `∇²E(x)` as triplets, appended to `h` (cleared
+    /// by the caller). Only the upper triangle counts (row ≤ column; duplicates summed):
+    /// entries below the diagonal are ignored, so an objective may push both triangles — what
+    /// per-element block assembly produces naturally — or only the upper one.
     fn hessian(&mut self, x: &[f64], h: &mut Triplets);
     /// The exact Hessian `∇²E(x)` (no PSD projection, possibly indefinite), in the same form
     /// and with the same sparsity pattern as [`Objective::hessian`]; `false` if the objective

@@ -2,9 +2,10 @@
 //! sparse column form out, with the sparsity pattern compared to the previous one so the
 //! symbolic factorisation can be reused.
 //!
-//! Convention: objectives push the **full** symmetric Hessian (both triangles, duplicates summed),
-//! which is what per-element block assembly produces naturally; entries below the diagonal are
-//! dropped here, entries touching a fixed DOF are dropped too (Dirichlet DOFs are not unknowns).
+//! Convention: objectives push the symmetric Hessian's upper triangle, or both triangles (what
+//! per-element block assembly produces naturally), duplicates summed; entries below the
+//! diagonal are dropped here, entries touching a fixed DOF are dropped too (Dirichlet DOFs are
+//! not unknowns).
 //!
 //! Assembly is a counting sort by column (linear in the number of triplets) followed by a small
 //! sort-and-merge within each column, parallel over columns; no comparison sort over all
@@ -14,7 +15,8 @@
 
 use rayon::prelude::*;
 
-/// A growing list of `(row, col, value)` entries of a symmetric matrix (both triangles).
+/// A growing list of `(row, col, value)` entries of a symmetric matrix (entries below the
+/// diagonal are ignored by the assembly).
 #[derive(Clone, Debug, Default)]
 pub struct Triplets {
     pub(crate) rows: Vec<u32>,
