@@ -827,12 +827,21 @@ impl Newton {
             self.rhs[k] = -self.g[d];
         }
         if moving {
+            // −H_fd p_d from the upper triangle (the part of the triplets that counts), each
+            // off-diagonal entry standing for itself and its mirror: an objective may push only
+            // the upper triangle, so a free DOF numbered after a fixed one finds their coupling
+            // only as (fixed, free).
             let t = &self.triplets;
             for k in 0..t.vals.len() {
                 let (r, c) = (t.rows[k] as usize, t.cols[k] as usize);
-                let fr = self.free[r];
+                if r >= c {
+                    continue;
+                }
+                let (fr, fc) = (self.free[r], self.free[c]);
                 if fr != u32::MAX && fixed[c] {
                     self.rhs[fr as usize] -= t.vals[k] * self.p[c];
+                } else if fc != u32::MAX && fixed[r] {
+                    self.rhs[fc as usize] -= t.vals[k] * self.p[r];
                 }
             }
         }

@@ -1043,6 +1043,107 @@ fn prescribed_dofs_reach_their_targets_through_the_line_search() {
     );
 }
 
+/// [`Quadratic`] pushing only the upper triangle of its Hessian (what the `Objective::hessian`
+/// contract allows, and what femp's grid Hessian does).
+struct UpperOnly(Quadratic);
+
+impl Objective for UpperOnly {
+    fn num_dofs(&self) -> usize {
+        self.0.num_dofs()
+    }
+    fn energy(&mut self, x: &[f64]) -> f64 {
+        self.0.energy(x)
+    }
+    fn gradient(&mut self, x: &[f64], g: &mut [f64]) {
+        self.0.gradient(x, g)
+    }
+    fn hessian(&mut self, x: &[f64], h: &mut Triplets) {
+        let mut full = Triplets::default();
+        self.0.hessian(x, &mut full);
+        h.extend(full.iter().filter(|&(r, c, _)| r <= c));
+    }
+}
+
+/// Moving prescribed DOFs on either side of free ones in the numbering: one Newton iteration
+/// lands on the constrained minimiser, whether the Hessian comes in both triangles or only the
+/// upper one — the prescribed motion's pull `−H_fd p_d` on a free DOF numbered after a fixed
+/// one is then in the triplets only as (fixed, free) and must be mirrored.
+#[test]
+fn moving_prescribed_dofs_couple_through_an_upper_triangle_hessian() {
+    let n = 12;
+    let a = spd(n, 7);
+    let b = DVector::from_fn(n, |i, _| (0.3 * i as f64).cos());
+    let fixed: Vec<bool> = (0..n).map(|i| i % 4 == 1).collect();
+    let target: Vec<f64> = (0..n)
+        .map(|i| if fixed[i] { 0.5 + 0.1 * i as f64 } else { 0.0 })
+        .collect();
+    // The constrained minimiser: A_ff x_f = b_f − A_fd t_d.
+    let free: Vec<usize> = (0..n).filter(|&i| !fixed[i]).collect();
+    let afd = DMatrix::from_fn(free.len(), free.len(), |r, c| a[(free[r], free[c])]);
+    let rhs = DVector::from_fn(free.len(), |r, _| {
+        b[free[r]]
+            - (0..n)
+                .filter(|&d| fixed[d])
+                .map(|d| a[(free[r], d)] * target[d])
+                .sum::<f64>()
+    });
+    let xf = afd.cholesky().unwrap().solve(&rhs);
+    let mut exact = target.clone();
+    for (r, &d) in free.iter().enumerate() {
+        exact[d] = xf[r];
+    }
+    let params = NewtonParams {
+        tolerance: 1e-10,
+        max_iterations: 1,
+        ..Default::default()
+    };
+    let one_step = |obj: &mut dyn FnMut(&mut [f64]) -> Result<SolveStats, SolveError>| {
+        let mut x = vec![0.0; n];
+        let err = obj(&mut x).unwrap_err();
+        assert!(matches!(err, SolveError::IterationLimit { .. }), "{err}");
+        x
+    };
+    let full = one_step(&mut |x| {
+        Newton::new().minimize_to(
+            &mut Quadratic {
+                a: a.clone(),
+                b: b.clone(),
+            },
+            x,
+            &fixed,
+            &target,
+            &params,
+        )
+    });
+    let upper = one_step(&mut |x| {
+        Newton::new().minimize_to(
+            &mut UpperOnly(Quadratic {
+                a: a.clone(),
+                b: b.clone(),
+            }),
+            x,
+            &fixed,
+            &target,
+            &params,
+        )
+    });
+    let scale = exact.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+    for d in 0..n {
+        assert!(
+            (full[d] - exact[d]).abs() < 1e-10 * scale,
+            "full, DOF {d}: {} vs {}",
+            full[d],
+            exact[d]
+        );
+        assert!(
+            (upper[d] - exact[d]).abs() < 1e-10 * scale,
+            "upper, DOF {d}: {} vs {}",
+            upper[d],
+            exact[d]
+        );
+    }
+}
+
 /// `E = 1 + ½ x₀² + ½ ε x₁²` whose `x₁` gradient carries a deterministic "round-off" term of
 /// size `η`, as a grid node with a tiny mass does: `p₁ ≈ η/ε` never shrinks, yet no energy
 /// change can be resolved.
