@@ -1,6 +1,6 @@
 //! The integration tests of `femp-augury`, one module per topic, in one test binary: every
 //! separate binary would link the crate and instantiate its generic code again, which
-//! dominated the release test build (`cargo test --workspace --release`).
+//! was a third of the release test build (`cargo test --workspace --release`).
 
 mod affine;
 mod blocks;
