@@ -141,21 +141,18 @@ impl<const D: usize> GridHessian<D> {
         const NODES_PER_TASK: usize = 64;
         let slots = self.slots;
         let n_nodes = self.rows.len().checked_div(slots).unwrap_or(0);
-        // Entries per task of consecutive nodes: the upper triangle only (the solver ignores
-        // entries below the diagonal), so a block to a later node in full, the node's own block
-        // on and above its diagonal, none to an earlier node (or an empty slot).
-        let upper = |i: usize, b: &HBlock<D>| match b.nbr as usize {
-            n if b.nbr == u32::MAX || n < i => 0,
-            n if n == i => D * (D + 1) / 2,
-            _ => D * D,
-        };
+        // Entries per task of consecutive nodes (`upper_columns` row by row).
         counts.clear();
         counts.extend((0..n_nodes).step_by(NODES_PER_TASK).map(|first| {
             (first..(first + NODES_PER_TASK).min(n_nodes))
                 .map(|i| {
                     self.rows[i * slots..(i + 1) * slots]
                         .iter()
-                        .map(|b| upper(i, b))
+                        .map(|b| {
+                            (0..D)
+                                .map(|rr| upper_columns(i, b, rr).len())
+                                .sum::<usize>()
+                        })
                         .sum::<usize>()
                 })
                 .sum::<usize>()
@@ -177,12 +174,8 @@ impl<const D: usize> GridHessian<D> {
                 let mut k = 0;
                 for i in first..last {
                     for b in &self.rows[i * slots..(i + 1) * slots] {
-                        if b.nbr == u32::MAX || (b.nbr as usize) < i {
-                            continue;
-                        }
-                        let own = b.nbr as usize == i;
                         for rr in 0..D {
-                            for cc in if own { rr..D } else { 0..D } {
+                            for cc in upper_columns(i, b, rr) {
                                 r[k] = (i * D + rr) as u32;
                                 c[k] = (b.nbr as usize * D + cc) as u32;
                                 v[k] = b.m[(rr, cc)];
@@ -193,6 +186,19 @@ impl<const D: usize> GridHessian<D> {
                 }
             });
         });
+    }
+}
+
+/// The columns of row `rr` of node `i`'s block `b` that lie in the Hessian's upper triangle
+/// (the solver ignores entries below the diagonal): all of a block to a later node, those on
+/// and above the diagonal of the node's own block, none of a block to an earlier node or of an
+/// empty slot.
+fn upper_columns<const D: usize>(i: usize, b: &HBlock<D>, rr: usize) -> std::ops::Range<usize> {
+    match b.nbr as usize {
+        _ if b.nbr == u32::MAX => 0..0,
+        n if n < i => 0..0,
+        n if n == i => rr..D,
+        _ => 0..D,
     }
 }
 

@@ -1097,36 +1097,26 @@ fn moving_prescribed_dofs_couple_through_an_upper_triangle_hessian() {
         max_iterations: 1,
         ..Default::default()
     };
-    let one_step = |obj: &mut dyn FnMut(&mut [f64]) -> Result<SolveStats, SolveError>| {
-        let mut x = vec![0.0; n];
-        let err = obj(&mut x).unwrap_err();
+    // One iteration from zero; it ends at the iteration limit (convergence needs a second).
+    fn one_step(
+        obj: &mut impl Objective,
+        fixed: &[bool],
+        target: &[f64],
+        params: &NewtonParams,
+    ) -> Vec<f64> {
+        let mut x = vec![0.0; fixed.len()];
+        let err = Newton::new()
+            .minimize_to(obj, &mut x, fixed, target, params)
+            .unwrap_err();
         assert!(matches!(err, SolveError::IterationLimit { .. }), "{err}");
         x
+    }
+    let quadratic = || Quadratic {
+        a: a.clone(),
+        b: b.clone(),
     };
-    let full = one_step(&mut |x| {
-        Newton::new().minimize_to(
-            &mut Quadratic {
-                a: a.clone(),
-                b: b.clone(),
-            },
-            x,
-            &fixed,
-            &target,
-            &params,
-        )
-    });
-    let upper = one_step(&mut |x| {
-        Newton::new().minimize_to(
-            &mut UpperOnly(Quadratic {
-                a: a.clone(),
-                b: b.clone(),
-            }),
-            x,
-            &fixed,
-            &target,
-            &params,
-        )
-    });
+    let full = one_step(&mut quadratic(), &fixed, &target, &params);
+    let upper = one_step(&mut UpperOnly(quadratic()), &fixed, &target, &params);
     let scale = exact.iter().fold(0.0f64, |m, v| m.max(v.abs()));
     for d in 0..n {
         assert!(
