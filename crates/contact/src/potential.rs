@@ -344,95 +344,127 @@ impl<const D: usize> ContactPotential<D> {
             particles.len(),
             candidates.num_particles(),
         )?;
+        // Particles in chunks of a fixed size, each chunk's terms into one vector (a few dozen
+        // allocations per call, none per particle), joined in particle order: the same terms
+        // in the same order whatever the number of threads.
+        const CHUNK: usize = 512;
+        let n = particles.len();
+        let parts: Vec<Result<Vec<ContactTerm>, ContactError>> = (0..n.div_ceil(CHUNK))
+            .into_par_iter()
+            .map_init(Scratch::default, |sc, c| {
+                let mut terms = Vec::new();
+                for q in c * CHUNK..n.min((c + 1) * CHUNK) {
+                    let cands = candidates.of(q);
+                    if !cands.is_empty() {
+                        self.particle_terms(
+                            q,
+                            &particles[q],
+                            weights[q],
+                            cands,
+                            boundary,
+                            sc,
+                            &mut terms,
+                        )?;
+                    }
+                }
+                Ok(terms)
+            })
+            .collect();
+        out.clear();
+        for part in parts {
+            out.extend_from_slice(&part?);
+        }
+        Ok(())
+    }
+
+    /// The active terms of particle `q` at `p` (weight `w`) against its candidate facets,
+    /// appended to `out`.
+    #[allow(clippy::too_many_arguments)]
+    fn particle_terms(
+        &self,
+        q: usize,
+        p: &SVector<f64, D>,
+        w: f64,
+        cands: &[u32],
+        boundary: &[SVector<f64, D>],
+        sc: &mut Scratch,
+        out: &mut Vec<ContactTerm>,
+    ) -> Result<(), ContactError> {
         let dhat2 = self.barrier.dhat * self.barrier.dhat;
         let topo = &self.topology;
-        let result: Result<Vec<ContactTerm>, ContactError> = (0..particles.len())
-            .into_par_iter()
-            .with_min_len(256)
-            .map_init(Scratch::default, |sc, q| {
-                let cands = candidates.of(q);
-                if cands.is_empty() {
-                    return Ok(Vec::new());
-                }
-                let p = &particles[q];
-                if p.iter().any(|c| !c.is_finite()) {
-                    return Err(ContactError::NonFinite {
-                        what: "particle position",
-                        index: q,
-                    });
-                }
-                sc.terms.clear();
-                sc.seen_vertices.clear();
-                sc.seen_edges.clear();
-                for &fi in cands {
-                    let fa = &topo.facets[fi as usize];
-                    let (s, feat) = facet_feature(p, fa, boundary);
-                    if !(s > 0.0) {
-                        return Err(ContactError::Penetration {
-                            particle: q,
-                            facet: fi as usize,
-                            distance: s.max(0.0).sqrt(),
-                        });
+        if p.iter().any(|c| !c.is_finite()) {
+            return Err(ContactError::NonFinite {
+                what: "particle position",
+                index: q,
+            });
+        }
+        sc.terms.clear();
+        sc.seen_vertices.clear();
+        sc.seen_edges.clear();
+        for &fi in cands {
+            let fa = &topo.facets[fi as usize];
+            let (s, feat) = facet_feature(p, fa, boundary);
+            if !(s > 0.0) {
+                return Err(ContactError::Penetration {
+                    particle: q,
+                    facet: fi as usize,
+                    distance: s.max(0.0).sqrt(),
+                });
+            }
+            if s < dhat2 {
+                sc.add(feat, 1.0, s);
+            }
+            if D == 3 {
+                for k in 0..3 {
+                    let (a, b) = (fa[k], fa[(k + 1) % 3]);
+                    let key = (a.min(b), a.max(b));
+                    if sc.seen_edges.contains(&key) {
+                        continue;
                     }
-                    if s < dhat2 {
-                        sc.add(feat, 1.0, s);
+                    sc.seen_edges.push(key);
+                    let c = topo.edge_coeff[fi as usize][k];
+                    if c == 0.0 {
+                        continue;
                     }
-                    if D == 3 {
-                        for k in 0..3 {
-                            let (a, b) = (fa[k], fa[(k + 1) % 3]);
-                            let key = (a.min(b), a.max(b));
-                            if sc.seen_edges.contains(&key) {
-                                continue;
-                            }
-                            sc.seen_edges.push(key);
-                            let c = topo.edge_coeff[fi as usize][k];
-                            if c == 0.0 {
-                                continue;
-                            }
-                            let (xa, xb) = (&boundary[a as usize], &boundary[b as usize]);
-                            let r = point_edge::region(p, xa, xb);
-                            let se = point_edge::sq_dist_in(r, p, xa, xb);
-                            if se < dhat2 {
-                                let feat = match r {
-                                    PointEdgeRegion::V0 => Feature::Vertex(a),
-                                    PointEdgeRegion::V1 => Feature::Vertex(b),
-                                    PointEdgeRegion::Interior => Feature::Edge(a, b),
-                                };
-                                sc.add(feat, c, se);
-                            }
-                        }
-                    }
-                    for &v in &fa[..D] {
-                        if sc.seen_vertices.contains(&v) {
-                            continue;
-                        }
-                        sc.seen_vertices.push(v);
-                        let c = topo.vertex_coeff[v as usize];
-                        if c == 0.0 {
-                            continue;
-                        }
-                        let sv = point_point::sq_dist(p, &boundary[v as usize]);
-                        if sv < dhat2 {
-                            sc.add(Feature::Vertex(v), c, sv);
-                        }
+                    let (xa, xb) = (&boundary[a as usize], &boundary[b as usize]);
+                    let r = point_edge::region(p, xa, xb);
+                    let se = point_edge::sq_dist_in(r, p, xa, xb);
+                    if se < dhat2 {
+                        let feat = match r {
+                            PointEdgeRegion::V0 => Feature::Vertex(a),
+                            PointEdgeRegion::V1 => Feature::Vertex(b),
+                            PointEdgeRegion::Interior => Feature::Edge(a, b),
+                        };
+                        sc.add(feat, c, se);
                     }
                 }
-                let w = weights[q];
-                Ok(sc
-                    .terms
-                    .iter()
-                    .filter(|t| t.1 != 0.0)
-                    .map(|&(feature, c, s)| ContactTerm {
-                        particle: q as u32,
-                        feature,
-                        weight: w * c,
-                        sq_dist: s,
-                    })
-                    .collect())
-            })
-            .collect::<Result<Vec<Vec<ContactTerm>>, _>>()
-            .map(|v| v.into_iter().flatten().collect());
-        *out = result?;
+            }
+            for &v in &fa[..D] {
+                if sc.seen_vertices.contains(&v) {
+                    continue;
+                }
+                sc.seen_vertices.push(v);
+                let c = topo.vertex_coeff[v as usize];
+                if c == 0.0 {
+                    continue;
+                }
+                let sv = point_point::sq_dist(p, &boundary[v as usize]);
+                if sv < dhat2 {
+                    sc.add(Feature::Vertex(v), c, sv);
+                }
+            }
+        }
+        out.extend(
+            sc.terms
+                .iter()
+                .filter(|t| t.1 != 0.0)
+                .map(|&(feature, c, s)| ContactTerm {
+                    particle: q as u32,
+                    feature,
+                    weight: w * c,
+                    sq_dist: s,
+                }),
+        );
         Ok(())
     }
 

@@ -673,3 +673,73 @@ fn batch_ccd_step_stops_before_the_floor() {
     let (alpha, pair) = ccd::max_step(&xp, &up, &v, &zero, &f, &c, &CcdOptions::default());
     assert_eq!((alpha, pair), (1.0, None));
 }
+
+/// Thousands of particles around the square (several of `collect_terms`' parallel chunks),
+/// some within d̂ of an edge or a corner, some beyond it: the terms are exactly those of each
+/// particle collected alone, in particle order. With two particles on the boundary, the error
+/// names the first of them, whatever the threads did.
+#[test]
+fn many_particles_collect_each_particles_terms_in_order() {
+    let (v, f) = square();
+    let pot = ContactPotential::new(
+        LogBarrier::new(0.1, 1e2).unwrap(),
+        BoundaryTopology::<2>::new(&f, 4).unwrap(),
+    );
+    let frac = |x: f64| x - x.floor();
+    // A point of the perimeter (parameter t ∈ [0, 4), one unit per edge) pushed out by s.
+    let outside = |t: f64, s: f64| {
+        let (e, u) = (t.floor() as usize % 4, frac(t));
+        let (a, b) = (v[e], v[(e + 1) % 4]);
+        let along = b - a;
+        let normal = Vector2::new(along.y, -along.x) / along.norm();
+        a + along * u + normal * s
+    };
+    let n = 3000;
+    let mut particles: Vec<Vector2<f64>> = (0..n)
+        .map(|k| {
+            let k = k as f64;
+            outside(
+                4.0 * frac(0.618_034 * k),
+                0.001 + 0.15 * frac(0.414_214 * k),
+            )
+        })
+        .collect();
+    let w: Vec<f64> = (0..n).map(|k| 0.5 + 1e-3 * k as f64).collect();
+    let mut c = Candidates::default();
+    broad_phase::candidates_within(&particles, &v, pot.topology.facets(), 0.1, &mut c);
+    let mut terms = Vec::new();
+    pot.collect_terms(&particles, &w, &v, &c, &mut terms)
+        .unwrap();
+
+    let mut expected = Vec::new();
+    let (mut c1, mut t1) = (Candidates::default(), Vec::new());
+    for q in 0..n {
+        let one = [particles[q]];
+        broad_phase::candidates_within(&one, &v, pot.topology.facets(), 0.1, &mut c1);
+        pot.collect_terms(&one, &w[q..=q], &v, &c1, &mut t1)
+            .unwrap();
+        expected.extend(t1.iter().map(|t| ContactTerm {
+            particle: q as u32,
+            ..*t
+        }));
+    }
+    let with_terms = (0..n as u32)
+        .filter(|&q| expected.iter().any(|t| t.particle == q))
+        .count();
+    assert!(
+        with_terms > n / 2 && with_terms < n,
+        "{with_terms} of {n} particles within d̂: the scene must have both kinds"
+    );
+    assert_eq!(terms, expected);
+
+    particles[1700] = Vector2::new(1.0, 0.3);
+    particles[2900] = Vector2::new(-0.4, 1.0);
+    broad_phase::candidates_within(&particles, &v, pot.topology.facets(), 0.1, &mut c);
+    let e = pot
+        .collect_terms(&particles, &w, &v, &c, &mut terms)
+        .unwrap_err();
+    assert!(
+        matches!(e, ContactError::Penetration { particle: 1700, .. }),
+        "{e}"
+    );
+}
