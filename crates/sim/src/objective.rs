@@ -229,6 +229,9 @@ pub struct StepObjective<'a, const D: usize> {
     gh: GridHessian<D>,
     cands: Candidates,
     terms: Vec<ContactTerm>,
+    /// Displacements over the step of a pair's points and facet body, for friction
+    /// ([`Self::fill_displacements`]).
+    disp: (Vec<SVector<f64, D>>, Vec<SVector<f64, D>>),
     fem_trip: Vec<Triplet>,
     node_force: Vec<SVector<f64, D>>,
     /// The x the scratch state was last unpacked at.
@@ -320,6 +323,7 @@ impl<'a, const D: usize> StepObjective<'a, D> {
             gh: GridHessian::new(),
             cands: Candidates::default(),
             terms: Vec::new(),
+            disp: (Vec::new(), Vec::new()),
             fem_trip: Vec::new(),
             node_force: Vec::new(),
             unpacked: Vec::new(),
@@ -406,27 +410,35 @@ impl<'a, const D: usize> StepObjective<'a, D> {
         points_of(&self.xq, self.fem, &self.fem_x, pair)
     }
 
-    /// Displacements over the step of a pair's points and boundary (for friction).
-    fn displacements(&self, pair: &Pair<D>) -> (Vec<SVector<f64, D>>, Vec<SVector<f64, D>>) {
-        let dp = match &pair.points {
+    /// Displacements over the step of pair `k`'s points and of its facets' body (for
+    /// friction), into the reused `self.disp`.
+    fn fill_displacements(&mut self, k: usize) {
+        let pair = &self.pairs[k];
+        let (dp, db) = &mut self.disp;
+        dp.clear();
+        match &pair.points {
             Points::Mpm { range } => {
                 let m = self.mpm.expect("MPM pair without MPM state");
-                (range.0..range.1).map(|p| self.xq[p] - m.x[p]).collect()
+                dp.extend((range.0..range.1).map(|p| self.xq[p] - m.x[p]));
             }
             Points::Fem { body } => {
                 let b = &self.fem[*body];
-                b.boundary
-                    .vertices()
-                    .iter()
-                    .map(|&v| self.fem_x[*body][v] - b.x[v])
-                    .collect()
+                dp.extend(
+                    b.boundary
+                        .vertices()
+                        .iter()
+                        .map(|&v| self.fem_x[*body][v] - b.x[v]),
+                );
             }
-        };
+        }
         let f = &self.fem[pair.facets_of];
-        let db = (0..f.x.len())
-            .map(|v| self.fem_x[pair.facets_of][v] - f.x[v])
-            .collect();
-        (dp, db)
+        db.clear();
+        db.extend(
+            self.fem_x[pair.facets_of]
+                .iter()
+                .zip(&f.x)
+                .map(|(now, start)| now - start),
+        );
     }
 
     /// Active contact terms of a pair at the unpacked state (into `self.terms`).
@@ -480,8 +492,9 @@ impl<'a, const D: usize> StepObjective<'a, D> {
             }
             self.scatter(k, bar, Some(g), None);
             if !self.friction[k].is_empty() {
-                let (dp, db) = self.displacements(&self.pairs[k]);
-                friction::derivatives(&self.pairs[k].friction, &self.friction[k], &dp, &db, fric);
+                self.fill_displacements(k);
+                let (dp, db) = &self.disp;
+                friction::derivatives(&self.pairs[k].friction, &self.friction[k], dp, db, fric);
                 self.scatter(k, fric, Some(g), None);
             }
         }
@@ -683,8 +696,14 @@ impl<'a, const D: usize> StepObjective<'a, D> {
                 for s in 1..d.n {
                     let bs = boff + d.vertices[s - 1] as usize * D;
                     for &(ba, wa, _) in &pdofs {
-                        push_block(h, ba, bs, &(d.hess[0][s] * (w * wa)));
-                        push_block(h, bs, ba, &(d.hess[s][0] * (w * wa)));
+                        // Of the two mirrored blocks, the one wholly below the diagonal
+                        // would be dropped by push_block anyway.
+                        if ba <= bs {
+                            push_block(h, ba, bs, &(d.hess[0][s] * (w * wa)));
+                        }
+                        if bs <= ba {
+                            push_block(h, bs, ba, &(d.hess[s][0] * (w * wa)));
+                        }
                     }
                     for t in 1..d.n {
                         let bt = boff + d.vertices[t - 1] as usize * D;
@@ -773,8 +792,9 @@ impl<'a, const D: usize> StepObjective<'a, D> {
             }
             e += w * self.pairs[k].potential.energy(&self.terms);
             if !self.friction[k].is_empty() {
-                let (dp, db) = self.displacements(&self.pairs[k]);
-                e += w * friction::energy(&self.pairs[k].friction, &self.friction[k], &dp, &db);
+                self.fill_displacements(k);
+                let (dp, db) = &self.disp;
+                e += w * friction::energy(&self.pairs[k].friction, &self.friction[k], dp, db);
             }
         }
         e
@@ -813,11 +833,15 @@ fn weights_of<'a, const D: usize>(
     }
 }
 
+/// The entries of block `b` at rows `r..r+D`, columns `c..c+D` that lie on or above the
+/// diagonal (the solver reads only the upper triangle; a block wholly below it adds nothing).
 #[inline]
 fn push_block<const D: usize>(h: &mut Triplets, r: usize, c: usize, b: &SMatrix<f64, D, D>) {
     for i in 0..D {
         for j in 0..D {
-            h.push(r + i, c + j, b[(i, j)]);
+            if r + i <= c + j {
+                h.push(r + i, c + j, b[(i, j)]);
+            }
         }
     }
 }
@@ -1380,6 +1404,11 @@ mod tests {
         assert!(obj.last_contacts.0 > 0, "the scene must have contact terms");
         let mut t = Triplets::default();
         assert!(obj.exact_hessian(&x, &mut t));
+        // Contact blocks, like the grid's and the elements', come as their upper triangle.
+        assert!(
+            t.iter().all(|(r, c, _)| r <= c),
+            "a triplet below the diagonal"
+        );
         let he = dense(&t, n);
         let mut t = Triplets::default();
         obj.hessian(&x, &mut t);
