@@ -696,8 +696,10 @@ impl<'a, const D: usize> StepObjective<'a, D> {
                 for s in 1..d.n {
                     let bs = boff + d.vertices[s - 1] as usize * D;
                     for &(ba, wa, _) in &pdofs {
-                        // Of the two mirrored blocks, the one wholly below the diagonal
-                        // would be dropped by push_block anyway.
+                        // Blocks start at multiples of D, so each lies wholly above, on or
+                        // wholly below the diagonal: of the two mirrored ones, build the one
+                        // above (both on it).
+                        debug_assert!(ba % D == 0 && bs % D == 0);
                         if ba <= bs {
                             push_block(h, ba, bs, &(d.hess[0][s] * (w * wa)));
                         }
