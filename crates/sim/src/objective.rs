@@ -699,7 +699,7 @@ impl<'a, const D: usize> StepObjective<'a, D> {
                         // Blocks start at multiples of D, so each lies wholly above, on or
                         // wholly below the diagonal: of the two mirrored ones, build the one
                         // above (both on it).
-                        debug_assert!(ba % D == 0 && bs % D == 0);
+                        debug_assert!(ba.is_multiple_of(D) && bs.is_multiple_of(D));
                         if ba <= bs {
                             push_block(h, ba, bs, &(d.hess[0][s] * (w * wa)));
                         }

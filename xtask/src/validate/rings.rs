@@ -70,6 +70,10 @@ struct Figures {
     last_contact: f64,
     energy_loss: f64,
     max_gain: f64,
+    /// Step-to-step changes of the total energy over E₀, summed: rises and falls (negative)
+    /// in steps with contact terms at either end, then in steps without.
+    changes_in_contact: (f64, f64),
+    changes_apart: (f64, f64),
 }
 
 fn figures(r: &RunResult) -> Figures {
@@ -97,7 +101,23 @@ fn figures(r: &RunResult) -> Figures {
         .iter()
         .find(|m| m.t > last_contact)
         .unwrap_or_else(|| r.metrics.last().expect("a run has metrics"));
+    let (mut changes_in_contact, mut changes_apart) = ((0.0, 0.0), (0.0, 0.0));
+    for w in r.metrics.windows(2) {
+        let d = (total_energy(&w[1]) - total_energy(&w[0])) / e0;
+        let sums = if w[0].contact_terms > 0 || w[1].contact_terms > 0 {
+            &mut changes_in_contact
+        } else {
+            &mut changes_apart
+        };
+        if d > 0.0 {
+            sums.0 += d;
+        } else {
+            sums.1 += d;
+        }
+    }
     Figures {
+        changes_in_contact,
+        changes_apart,
         momentum_drift,
         penetrations: r.metrics.iter().map(|m| m.penetrations).max().unwrap_or(0),
         first_contact,
@@ -185,8 +205,12 @@ pub fn run(ctx: &Ctx) -> Result<Outcome> {
              Momentum drift {:.2e} of Σm|v₀| (bound ε_d/v₀ = {:.1e}); {:.2} % of the energy lost \
              between the start and the first step after separation (t = {:.3} s), paper {paper_loss} %; \
              difference {:+.2} percentage points. The total energy first *rises* by up to \
-             {:.2} % in the first half of the collision before it falls: not in the paper, and \
-             not explained yet (Newmark with the stiff barrier is the suspect).",
+             {:.2} % in the first half of the collision before it falls: not in the paper. \
+             Step by step, it went up by {:.2} % of E₀ and down by {:.2} % in steps with contact \
+             terms, up by {:.3} % and down by {:.2} % in steps without: the rises come with the \
+             barrier — Newmark's trapezoidal update with the stiff barrier force, not the \
+             transfers (backward Euler shows none, and two FEM rings with Newmark gain far more; \
+             docs/bfemp.md, Known limits).",
             r.summary.particles,
             r.summary.fem_vertices,
             r.summary.steps,
@@ -198,6 +222,10 @@ pub fn run(ctx: &Ctx) -> Result<Outcome> {
             f.last_contact,
             100.0 * f.energy_loss - paper_loss,
             100.0 * f.max_gain,
+            100.0 * f.changes_in_contact.0,
+            -100.0 * f.changes_in_contact.1,
+            100.0 * f.changes_apart.0,
+            -100.0 * f.changes_apart.1,
         ));
         let e0 = total_energy(&r.metrics[0]);
         energy_series.push(Series::line(
