@@ -51,6 +51,9 @@ pub struct Summary {
     /// Newton iterations that reused the previous iteration's Hessian
     /// (`solver.reuse_hessian_below`).
     pub reused_hessians: usize,
+    /// Full Newton steps taken on the gradient's word where the energy could not resolve
+    /// their decrease (femp-solver `SolveStats::gradient_steps`).
+    pub gradient_steps: usize,
     /// Conjugate-gradient iterations (`solver.linear: "pcg"`).
     pub pcg_iterations: usize,
     /// Newton directions CG did not deliver and Cholesky did (`solver.linear: "pcg"`).

@@ -158,6 +158,7 @@ pub fn run_with<const D: usize>(
                 summary.exact_hessian_iterations += report.stats.exact_iterations;
                 summary.exact_hessian_rejections += report.stats.exact_rejections;
                 summary.reused_hessians += report.stats.reused_hessians;
+                summary.gradient_steps += report.stats.gradient_steps;
                 summary.pcg_iterations += report.stats.pcg_iterations;
                 summary.pcg_fallbacks += report.stats.pcg_fallbacks;
                 summary.friction_unconverged_steps += usize::from(!report.friction_converged);

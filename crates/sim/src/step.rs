@@ -47,6 +47,7 @@ fn add_stats(acc: &mut SolveStats, s: &SolveStats) {
     acc.final_energy = s.final_energy;
     acc.regularizations += s.regularizations;
     acc.roundoff_stops += s.roundoff_stops;
+    acc.gradient_steps += s.gradient_steps;
     acc.exact_iterations += s.exact_iterations;
     acc.reused_hessians += s.reused_hessians;
     acc.exact_rejections += s.exact_rejections;

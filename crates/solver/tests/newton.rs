@@ -1335,3 +1335,89 @@ fn patterns_that_come_and_go_within_a_solve_share_one_analysis() {
         assert!((v - i as f64).abs() < 1e-10, "y[{i}] = {v}");
     }
 }
+
+/// A quadratic whose energy comes out `noise` too high everywhere but at the start `x0`, as
+/// round-off does when the energy is a sum of terms far larger than the change a converging
+/// Newton step makes (a spinning FEM ring's step stalled so: femp's scene, docs/solver.md).
+/// The gradient is exact; the Hessian is `hess_scale` times the true one.
+struct RoundedQuadratic {
+    q: Quadratic,
+    x0: Vec<f64>,
+    noise: f64,
+    hess_scale: f64,
+}
+
+impl Objective for RoundedQuadratic {
+    fn num_dofs(&self) -> usize {
+        self.q.num_dofs()
+    }
+    fn energy(&mut self, x: &[f64]) -> f64 {
+        self.q.energy(x)
+            + if x == self.x0.as_slice() {
+                0.0
+            } else {
+                self.noise
+            }
+    }
+    fn gradient(&mut self, x: &[f64], g: &mut [f64]) {
+        self.q.gradient(x, g);
+    }
+    fn hessian(&mut self, _x: &[f64], h: &mut Triplets) {
+        let n = self.q.b.len();
+        for i in 0..n {
+            for j in i..n {
+                h.push(i, j, self.hess_scale * self.q.a[(i, j)]);
+            }
+        }
+    }
+}
+
+/// No step length lowers an energy that cannot resolve the decrease: the full Newton step is
+/// taken on the gradient's word when its energy rises by less than 10× the predicted decrease
+/// and the gradient at least halves there — and only then (a larger rise, or a direction from
+/// a wrong Hessian that leaves the gradient large, still stalls).
+#[test]
+fn a_step_below_the_energys_round_off_is_taken_when_the_gradient_confirms_it() {
+    let n = 6;
+    let a = spd(n, 5);
+    let b = DVector::from_fn(n, |i, _| (i as f64).cos());
+    let exact = a.clone().cholesky().unwrap().solve(&b);
+    let delta = DVector::from_fn(n, |i, _| 1e-3 * (1.0 + i as f64).sin());
+    let x0: Vec<f64> = (&exact + &delta).as_slice().to_vec();
+    let decrease = delta.dot(&(&a * &delta)); // −gᵀp of the exact Newton step
+    let params = NewtonParams {
+        tolerance: 1e-8,
+        ..Default::default()
+    };
+    let solve = |noise: f64, hess_scale: f64| {
+        let mut obj = RoundedQuadratic {
+            q: Quadratic {
+                a: a.clone(),
+                b: b.clone(),
+            },
+            x0: x0.clone(),
+            noise,
+            hess_scale,
+        };
+        let mut x = x0.clone();
+        let r = Newton::new().minimize(&mut obj, &mut x, &vec![false; n], &params);
+        (r, x)
+    };
+
+    let (r, x) = solve(2.0 * decrease, 1.0);
+    let stats = r.expect("the full step is confirmed by the gradient");
+    assert_eq!(stats.gradient_steps, 1);
+    assert!((DVector::from_column_slice(&x) - &exact).amax() < 1e-10 * exact.amax());
+
+    let (r, _) = solve(20.0 * decrease, 1.0);
+    assert!(
+        matches!(r, Err(SolveError::LineSearchStalled { .. })),
+        "a rise of 20× the predicted decrease is not round-off: {r:?}"
+    );
+    // Ten times the Hessian: p = −δ/10, the gradient keeps 90 % of its norm.
+    let (r, _) = solve(0.2 * decrease, 10.0);
+    assert!(
+        matches!(r, Err(SolveError::LineSearchStalled { .. })),
+        "a step the gradient does not confirm is not taken: {r:?}"
+    );
+}
