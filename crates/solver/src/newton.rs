@@ -242,10 +242,10 @@ pub struct SolveStats {
     /// shrinking, or no step decreased the energy and `−gᵀp ≤ 10⁴·ROUNDOFF·|E|`.
     pub roundoff_stops: usize,
     /// Full Newton steps taken on the gradient's word: no step length decreased the energy,
-    /// but the full step was feasible, raised the energy by no more than its predicted
-    /// decrease `−gᵀp` and at least halved the free gradient — the energy's evaluation cannot
-    /// resolve so small a change (its summands are far larger than their sum), the gradient
-    /// can.
+    /// but the full step was feasible, raised the energy by at most 10× (`GRADIENT_STEP_RISE`)
+    /// the predicted decrease `−gᵀp` and at least halved the free gradient — the energy's
+    /// evaluation cannot resolve so small a change (its summands are far larger than their
+    /// sum), the gradient can.
     pub gradient_steps: usize,
     /// Symbolic analyses (sparsity pattern changes).
     pub symbolic_analyses: usize,
