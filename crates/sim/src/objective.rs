@@ -143,18 +143,15 @@ impl<const D: usize> GridHessian<D> {
         let n_nodes = self.rows.len().checked_div(slots).unwrap_or(0);
         // Entries per task of consecutive nodes (`upper_columns` row by row).
         counts.clear();
+        let node_entries = |i: usize| -> usize {
+            self.rows[i * slots..(i + 1) * slots]
+                .iter()
+                .flat_map(|b| (0..D).map(move |rr| upper_columns(i, b, rr).len()))
+                .sum()
+        };
         counts.extend((0..n_nodes).step_by(NODES_PER_TASK).map(|first| {
             (first..(first + NODES_PER_TASK).min(n_nodes))
-                .map(|i| {
-                    self.rows[i * slots..(i + 1) * slots]
-                        .iter()
-                        .map(|b| {
-                            (0..D)
-                                .map(|rr| upper_columns(i, b, rr).len())
-                                .sum::<usize>()
-                        })
-                        .sum::<usize>()
-                })
+                .map(node_entries)
                 .sum::<usize>()
         }));
         let total: usize = counts.iter().sum();

@@ -840,7 +840,7 @@ impl Newton {
     /// step length decreased the energy: that energy is finite and above `e` by no more than
     /// [`GRADIENT_STEP_RISE`] times the predicted decrease `−gᵀp` (a change the energy's
     /// evaluation does not resolve: measured on a spinning FEM ring, the energy of a
-    /// converging Newton step came out 1.7–2.3× the predicted decrease *above* `e`), and the
+    /// converging Newton step came out 0.25–2.3× the predicted decrease *above* `e`), and the
     /// free gradient's norm there is at most half the current one (Newton's local convergence,
     /// which the gradient resolves: 2·10⁵× smaller in that case). See
     /// [`SolveStats::gradient_steps`].
