@@ -1,6 +1,7 @@
 //! Sparse Cholesky on elasticity-like SPD matrices (2D: 2 DOFs/node, 3D: 3 DOFs/node,
 //! 10⁴–4·10⁵ unknowns): symbolic analysis (AMD vs. METIS nested dissection), numeric
-//! factorisation (1 and 2 threads) and solve, timed separately. Prints the factor fill once.
+//! factorisation (1 thread, the pool's threads, and `Threads::Auto`'s fixed 8-task split) and
+//! solve, timed separately. Prints the factor fill once.
 //! Also the assembly of the matrix from its triplets: a full build (counting sort and merge)
 //! and a build that reuses the previous one's structure (values scattered into place).
 //!
@@ -49,7 +50,13 @@ fn benches(c: &mut Criterion) {
                     ch.analyze(&case.csc).unwrap();
                 })
             });
-            for (tname, threads) in [("1t", Threads::Seq), ("2t", Threads::Rayon)] {
+            // `tasks8`: the split `Threads::Auto` uses for large factors (a fixed task count, so
+            // the same bits on any number of threads), on the machine's threads.
+            for (tname, threads) in [
+                ("1t", Threads::Seq),
+                ("2t", Threads::Rayon),
+                ("tasks8", Threads::Tasks(femp_solver::FACTOR_TASKS)),
+            ] {
                 let mut ch = Cholesky::new(ord, threads);
                 ch.analyze(&case.csc).unwrap();
                 let mut a = case.csc.clone();

@@ -29,6 +29,13 @@ pub enum SolveError {
         /// Statistics up to the failure.
         stats: Box<SolveStats>,
     },
+    /// The solve was stopped from outside ([`crate::Newton::set_interrupt`]) before an
+    /// iteration.
+    #[error("interrupted after {} Newton iterations", stats.iterations)]
+    Interrupted {
+        /// Statistics up to the interruption.
+        stats: Box<SolveStats>,
+    },
     /// The linear solve failed.
     #[error("linear solve failed after {} Newton iterations: {source}", stats.iterations)]
     Linear {
@@ -46,6 +53,7 @@ impl SolveError {
             SolveError::BadProblem(_) => None,
             SolveError::LineSearchStalled { stats }
             | SolveError::IterationLimit { stats }
+            | SolveError::Interrupted { stats }
             | SolveError::NonFinite { stats, .. }
             | SolveError::Linear { stats, .. } => Some(stats),
         }

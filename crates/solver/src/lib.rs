@@ -38,7 +38,7 @@ mod sparse;
 
 pub use error::SolveError;
 pub use integrator::Integrator;
-pub use linear::{Cholesky, LinearError, LinearStats, Ordering, Threads};
+pub use linear::{Cholesky, FACTOR_TASKS, LinearError, LinearStats, Ordering, Threads};
 pub use newton::{
     Forcing, HessianStrategy, LinearSolver, Newton, NewtonParams, Objective, SolveStats, StepBound,
     StepLimit,

@@ -41,17 +41,28 @@ pub enum Ordering {
     Auto,
 }
 
+/// The tasks [`Threads::Auto`] splits a large factorisation into, on any number of threads.
+pub const FACTOR_TASKS: usize = 8;
+
 /// Parallelism of the numeric factorisation and solve.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
 pub enum Threads {
     /// Single-threaded.
     Seq,
-    /// rayon, with faer's choice of split.
+    /// rayon, split into as many tasks as the pool has threads: the fastest, but faer's sums
+    /// then depend on the thread count (results differ in the last bits from machine to
+    /// machine).
     Rayon,
-    /// Rayon when the factor is large and dense enough to profit: measured (see
+    /// rayon, split into this many tasks whatever the pool's size: the same bits on any number
+    /// of threads (faer's split, and with it its summation order, follows the task count).
+    Tasks(usize),
+    /// Rayon when the factor is large and dense enough to profit, split into a fixed
+    /// [`FACTOR_TASKS`] tasks (as [`Threads::Tasks`]) whatever the pool's size, so the result has the same bits on any
+    /// number of threads (faer's split, and with it its summation order, follows the task
+    /// count; it is not that of the sequential factorisation). Measured (see
     /// `docs/performance.md`), 2 threads were slower than 1 on every 2D matrix and on small 3D
     /// ones, 1.4× faster on the 3D matrix with 10⁵ unknowns. Rule: `nnz(L) > 2·10⁷` and
-    /// `nnz(L)/n > 300`.
+    /// `nnz(L)/n > 300` (a property of the matrix alone).
     #[default]
     Auto,
 }
@@ -132,13 +143,11 @@ impl Cholesky {
         match self.threads {
             Threads::Seq => Par::Seq,
             Threads::Rayon => Par::rayon(0),
+            Threads::Tasks(n) => Par::rayon(n.max(1)),
             Threads::Auto => {
                 let n = n.max(1);
-                if factor_nnz > 20_000_000
-                    && factor_nnz / n > 300
-                    && rayon::current_num_threads() > 1
-                {
-                    Par::rayon(0)
+                if factor_nnz > 20_000_000 && factor_nnz / n > 300 {
+                    Par::rayon(FACTOR_TASKS)
                 } else {
                     Par::Seq
                 }

@@ -18,6 +18,8 @@
 //! energy with `α` above a floor, the iteration limit, a non-finite energy or gradient, an
 //! unfactorisable Hessian.
 
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering as AtomicOrdering};
 use std::time::Instant;
 
 use crate::linear::{Cholesky, LinearError, Ordering, Threads};
@@ -288,6 +290,8 @@ pub struct Newton {
     g_trial: Vec<f64>,
     pcg: Pcg,
     sol: Vec<f64>,
+    /// Set from elsewhere to stop the solve before its next iteration.
+    interrupt: Option<Arc<AtomicBool>>,
 }
 
 /// The Hessian's sparse matrix and its factorisation: what a Newton iteration can hand to
@@ -334,7 +338,15 @@ impl Newton {
             g_trial: Vec::new(),
             pcg: Pcg::new(),
             sol: Vec::new(),
+            interrupt: None,
         }
+    }
+
+    /// A flag that, once set (e.g. by a signal handler), stops every solve before its next
+    /// iteration with [`SolveError::Interrupted`]: a solve that never converges can still be
+    /// stopped. `None` removes it.
+    pub fn set_interrupt(&mut self, flag: Option<Arc<AtomicBool>>) {
+        self.interrupt = flag;
     }
 
     /// Minimise `obj` from `x` (in place). `fixed[dof]` marks Dirichlet DOFs: they keep the
@@ -444,6 +456,16 @@ impl Newton {
         // Eisenstat–Walker state: the last free gradient norm and forcing term.
         let mut last_forcing = (0.0f64, 0.0f64);
         for _ in 0..params.max_iterations {
+            if self
+                .interrupt
+                .as_ref()
+                .is_some_and(|f| f.load(AtomicOrdering::Relaxed))
+            {
+                finish(&mut stats, &self.lin.chol, e);
+                return Err(SolveError::Interrupted {
+                    stats: Box::new(stats),
+                });
+            }
             stats.iterations += 1;
             let t = Instant::now();
             obj.begin_iteration(x);
@@ -905,9 +927,6 @@ impl Newton {
     }
 }
 
-/// Book an exact Hessian found indefinite: try again next iteration after a first rejection,
-/// then back off (wait 1, 3, 7, … iterations): a solve whose exact Hessian stays indefinite
-/// wastes O(log iterations) tries.
 /// The Eisenstat–Walker forcing term (choice 2, γ = 0.9, α = 2) for a free gradient of norm
 /// `gnorm`, given the last iteration's `(gradient norm, term)` (`(0, 0)` in a solve's first
 /// iteration, which gets `max`), clamped to `[rtol, max]`; updates `last`.
@@ -927,6 +946,9 @@ fn forcing_term(gnorm: f64, last: &mut (f64, f64), rtol: f64, max: f64) -> f64 {
     eta
 }
 
+/// Book an exact Hessian found indefinite: try again next iteration after a first rejection,
+/// then back off (wait 1, 3, 7, … iterations): a solve whose exact Hessian stays indefinite
+/// wastes O(log iterations) tries.
 fn reject_exact(stats: &mut SolveStats, rejected_in_a_row: &mut u32, wait: &mut u64) {
     stats.exact_rejections += 1;
     *rejected_in_a_row += 1;

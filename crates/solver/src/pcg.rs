@@ -74,8 +74,13 @@ pub struct Pcg {
 /// Below this many stored entries a product runs on one thread.
 const PARALLEL_NNZ: usize = 20_000;
 
-/// At most this many column chunks (threads) per product.
+/// At most this many column chunks per product.
 const MAX_CHUNKS: usize = 16;
+
+/// Stored entries per column chunk of a parallel product. The chunk count follows from the
+/// matrix alone, never from the number of threads: every entry of the product is summed in the
+/// same order on any machine, so CG gives the same bits on 1, 2 or 16 threads.
+const CHUNK_NNZ: usize = 100_000;
 
 impl Pcg {
     /// Empty buffers.
@@ -236,8 +241,8 @@ impl UpperCsc {
     }
 
     /// `A x` as the sum of `parts[0..k]` (the returned `k`, each `n` long): columns are split
-    /// into `k` chunks of about equal entry counts, one per rayon thread (one below 20 000
-    /// entries), each accumulating its columns' contributions into its own buffer (grown as
+    /// into `k` chunks of about equal entry counts (one below 20 000 entries, then one per
+    /// 100 000 entries, 2 to 16 — fixed by the matrix, not the thread count), each accumulating its columns' contributions into its own buffer (grown as
     /// needed, kept for the next call). Callers sum the parts where they use the product, so
     /// a product costs one fork–join and no extra pass.
     pub fn mul_symmetric_parts(&self, x: &[f64], parts: &mut Vec<Vec<f64>>) -> usize {
@@ -268,7 +273,7 @@ impl<I: Copy + Sync + TryInto<usize>> Sym<'_, I> {
         let chunks = if nnz < PARALLEL_NNZ {
             1
         } else {
-            rayon::current_num_threads().clamp(1, MAX_CHUNKS)
+            (nnz / CHUNK_NNZ).clamp(2, MAX_CHUNKS)
         };
         if parts.len() < chunks {
             parts.resize_with(chunks, Vec::new);

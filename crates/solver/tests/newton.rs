@@ -1421,3 +1421,124 @@ fn a_step_below_the_energys_round_off_is_taken_when_the_gradient_confirms_it() {
         "a step the gradient does not confirm is not taken: {r:?}"
     );
 }
+
+/// `E = e^{−x}`: Newton steps by exactly 1 forever (`p = −E'/E'' = 1`), the energy falling every
+/// time — a solve that never converges. It sets `flag` when its `at`-th iteration begins, as a
+/// signal handler would in the middle of a step.
+struct Runaway {
+    flag: std::sync::Arc<std::sync::atomic::AtomicBool>,
+    at: usize,
+    iterations: usize,
+}
+
+impl Objective for Runaway {
+    fn num_dofs(&self) -> usize {
+        1
+    }
+    fn begin_iteration(&mut self, _x: &[f64]) {
+        self.iterations += 1;
+        if self.iterations == self.at {
+            self.flag.store(true, std::sync::atomic::Ordering::Relaxed);
+        }
+    }
+    fn energy(&mut self, x: &[f64]) -> f64 {
+        (-x[0]).exp()
+    }
+    fn gradient(&mut self, x: &[f64], g: &mut [f64]) {
+        g[0] = -(-x[0]).exp();
+    }
+    fn hessian(&mut self, x: &[f64], h: &mut Triplets) {
+        h.push(0, 0, (-x[0]).exp());
+    }
+}
+
+#[test]
+fn an_interrupt_stops_a_solve_that_never_converges_between_iterations() {
+    let params = NewtonParams {
+        tolerance: 1e-6,
+        max_iterations: 10_000,
+        ..Default::default()
+    };
+    let flag = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
+    let mut obj = Runaway {
+        flag: flag.clone(),
+        at: 5,
+        iterations: 0,
+    };
+    let mut newton = Newton::new();
+    newton.set_interrupt(Some(flag.clone()));
+    let mut x = vec![0.0];
+    match newton.minimize(&mut obj, &mut x, &[false], &params) {
+        Err(SolveError::Interrupted { stats }) => {
+            // The flag went up during iteration 5; iteration 6 never started.
+            assert_eq!(stats.iterations, 5);
+            assert!((x[0] - 5.0).abs() < 1e-9, "x = {}", x[0]);
+        }
+        other => panic!("expected an interrupt, got {other:?}"),
+    }
+    // Without the flag the same solve runs into its iteration limit.
+    let mut obj = Runaway {
+        flag: std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false)),
+        at: 5,
+        iterations: 0,
+    };
+    let mut newton = Newton::new();
+    let mut x = vec![0.0];
+    let params = NewtonParams {
+        max_iterations: 20,
+        ..params
+    };
+    assert!(matches!(
+        newton.minimize(&mut obj, &mut x, &[false], &params),
+        Err(SolveError::IterationLimit { .. })
+    ));
+    // A flag set before the solve stops it before any iteration.
+    let mut newton = Newton::new();
+    newton.set_interrupt(Some(flag));
+    let mut x = vec![0.0];
+    assert!(matches!(
+        newton.minimize(&mut obj, &mut x, &[false], &params),
+        Err(SolveError::Interrupted { stats }) if stats.iterations == 0
+    ));
+}
+
+#[path = "../benches/common/matrices.rs"]
+mod matrices;
+
+/// `Threads::Auto` factorises large matrices on rayon's threads in a fixed number of tasks: the
+/// same bits on any number of threads, so a run's results do not depend on the machine's core
+/// count. (`Threads::Rayon`, split by the pool's size, differs in the last bits between 2 and 3
+/// threads — the reason `Auto` does not use it.)
+#[test]
+fn cholesky_gives_the_same_bits_on_any_number_of_threads() {
+    use femp_solver::Cholesky;
+    // 3D elasticity, 3·16³ ≈ 12 000 unknowns: a factor with millions of entries and many
+    // supernodes to share out (below `Auto`'s size rule, so the test asks for its split).
+    let case = matrices::grid3(16);
+    let solve = |threads: Threads| -> Vec<f64> {
+        let mut ch = Cholesky::new(Ordering::Amd, threads);
+        let mut a = case.csc.clone();
+        ch.analyze(&a).unwrap();
+        ch.factorize(&mut a).unwrap();
+        let mut x: Vec<f64> = (0..a.n())
+            .map(|i| ((i * 7919) % 101) as f64 - 50.0)
+            .collect();
+        ch.solve_in_place(&mut x);
+        x
+    };
+    let on = |n: usize, threads: Threads| {
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(n)
+            .build()
+            .unwrap()
+            .install(|| solve(threads))
+    };
+    let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<u64>>();
+    let auto = Threads::Tasks(femp_solver::FACTOR_TASKS);
+    let one = on(1, auto);
+    for n in [2, 3, 4] {
+        assert_eq!(bits(&one), bits(&on(n, auto)), "{auto:?} on {n} threads");
+    }
+    // The check can fail: split by the pool's size, the bits change.
+    assert_ne!(bits(&on(2, Threads::Rayon)), bits(&on(3, Threads::Rayon)));
+}
