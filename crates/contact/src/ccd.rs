@@ -18,10 +18,10 @@
 //! The original stops once the distance falls below `s · d₀` (a minimum separation relative to
 //! the start, `s ≈ 0.1` in IPC codes), which reports a collision for every near miss that gets
 //! that close. We keep marching until the distance falls below a *tiny absolute* separation
-//! `δ = max(τ_rel · scale, …)` (default `τ_rel = 1e-9` of the query's coordinate and motion
-//! scale — far above floating-point noise, so a touching contact can never be stepped over, far
-//! below any physical gap). This removes most false positives; queries that graze at a distance
-//! smaller than `δ` and the iteration cap (default 2000 steps, reached only by queries that
+//! `δ = min(τ_rel · scale, s · d₀)` (defaults `τ_rel = 1e-6` of the query's coordinate and
+//! motion scale, `s = 0.1`: [`CcdOptions`] — far above floating-point noise, so a touching
+//! contact can never be stepped over, far below any physical gap). This removes most false positives; queries that graze at a distance
+//! smaller than `δ` and the iteration cap (default 800 steps, reached only by queries that
 //! stay within a hair of contact for the whole step) still report a conservative collision.
 //! The returned time is never later than the true first contact. Tests run every query of the
 //! Wang et al. 2021 benchmark and the IPC Toolkit's 2D cases: zero false negatives.

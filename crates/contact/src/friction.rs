@@ -292,13 +292,21 @@ pub fn energy<const D: usize>(
     dxb: &[SVector<f64, D>],
 ) -> f64 {
     let eps = params.eps();
+    // Summed in fixed chunks, in order: the same bits on any number of threads (rayon's own
+    // `sum` splits by thread count and work stealing).
     terms
-        .par_iter()
-        .with_min_len(1024)
-        .map(|t| {
-            let u = t.tangential_displacement(dxp, dxb);
-            params.mu * t.lambda * f0((u[0] * u[0] + u[1] * u[1]).sqrt(), eps)
+        .par_chunks(crate::SUM_CHUNK)
+        .map(|chunk| {
+            chunk
+                .iter()
+                .map(|t| {
+                    let u = t.tangential_displacement(dxp, dxb);
+                    params.mu * t.lambda * f0((u[0] * u[0] + u[1] * u[1]).sqrt(), eps)
+                })
+                .sum::<f64>()
         })
+        .collect::<Vec<f64>>()
+        .into_iter()
         .sum()
 }
 

@@ -470,10 +470,17 @@ impl<const D: usize> ContactPotential<D> {
 
     /// `B = Σ_terms weight · b(d)`.
     pub fn energy(&self, terms: &[ContactTerm]) -> f64 {
+        // Fixed chunks summed in order: the same bits on any number of threads.
         terms
-            .par_iter()
-            .with_min_len(1024)
-            .map(|t| t.weight * self.barrier.value(t.sq_dist.sqrt()))
+            .par_chunks(crate::SUM_CHUNK)
+            .map(|chunk| {
+                chunk
+                    .iter()
+                    .map(|t| t.weight * self.barrier.value(t.sq_dist.sqrt()))
+                    .sum::<f64>()
+            })
+            .collect::<Vec<f64>>()
+            .into_iter()
             .sum()
     }
 

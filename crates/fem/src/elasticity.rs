@@ -135,15 +135,24 @@ impl<const D: usize, M: Hyperelastic<D>> ElasticBody<D, M> {
     /// `Ψ(x) = Σ_e V_e ψ(F_e)`.
     pub fn energy(&self, x: &[SVector<f64, D>]) -> Result<f64, FemError> {
         self.check(x)?;
-        Ok((0..self.elements.len())
+        // Fixed chunks summed in order: the same bits on any number of threads (rayon's own
+        // `sum` splits by thread count and work stealing).
+        const CHUNK: usize = 1024;
+        let n = self.elements.len();
+        Ok((0..n.div_ceil(CHUNK))
             .into_par_iter()
-            .with_min_len(1024)
-            .map(|e| {
-                self.elements[e].volume
-                    * self
-                        .material
-                        .energy_density(&self.deformation_gradient(e, x))
+            .map(|c| {
+                (c * CHUNK..((c + 1) * CHUNK).min(n))
+                    .map(|e| {
+                        self.elements[e].volume
+                            * self
+                                .material
+                                .energy_density(&self.deformation_gradient(e, x))
+                    })
+                    .sum::<f64>()
             })
+            .collect::<Vec<f64>>()
+            .into_iter()
             .sum())
     }
 

@@ -18,7 +18,7 @@ pub mod point_triangle;
 
 use nalgebra::{SMatrix, SVector};
 
-/// `a aᵀ`.
+/// `a bᵀ`.
 #[inline]
 pub(crate) fn outer<const D: usize>(
     a: &SVector<f64, D>,

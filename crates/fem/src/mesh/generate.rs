@@ -26,11 +26,27 @@ fn bad(what: &'static str, value: f64, requirement: &'static str) -> FemError {
     }
 }
 
+/// The most cells or vertices a generated mesh may have: indices are stored as `u32` in contact
+/// (and no machine holds that many tetrahedra anyway).
+pub const MAX_GENERATED: f64 = u32::MAX as f64;
+
+/// Every count at least 1, and the mesh they make (at most 6 cells per grid cell, the
+/// vertices of the `(n + 1)` lattice) within [`MAX_GENERATED`] — checked in floating point, so
+/// that absurd counts are refused instead of overflowing a product or an allocation.
 fn check_counts(counts: &[(&'static str, usize)]) -> Result<(), FemError> {
     for &(name, n) in counts {
         if n == 0 {
             return Err(bad(name, 0.0, "resolution must be at least 1"));
         }
+    }
+    let cells: f64 = counts.iter().map(|&(_, n)| n as f64 + 1.0).product::<f64>() * 6.0;
+    if cells > MAX_GENERATED {
+        let &(name, n) = counts.iter().max_by_key(|(_, n)| *n).expect("non-empty");
+        return Err(bad(
+            name,
+            n as f64,
+            "the mesh would have more than 2³² − 1 cells; use fewer cells",
+        ));
     }
     Ok(())
 }
@@ -142,6 +158,14 @@ pub fn cuboid(
 /// vertices, so triangles are nearly equilateral with edge ≈ `radius / rings`.
 pub fn disk(center: Vector2<f64>, radius: f64, rings: usize) -> Result<Mesh<2>, FemError> {
     check_counts(&[("rings", rings)])?;
+    // 1 + 3r(r + 1) vertices and 6r² triangles.
+    if 6.0 * (rings as f64).powi(2) > MAX_GENERATED {
+        return Err(bad(
+            "rings",
+            rings as f64,
+            "the mesh would have more than 2³² − 1 cells; use fewer rings",
+        ));
+    }
     if !(radius > 0.0 && radius.is_finite()) {
         return Err(bad("radius", radius, "must be positive and finite"));
     }

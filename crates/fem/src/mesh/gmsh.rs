@@ -40,13 +40,60 @@ fn file_error(path: &Path, line: usize, message: impl Into<String>) -> FemError 
     }
 }
 
-/// Read a Gmsh mesh file into a `D`-dimensional mesh.
+/// The largest mesh file [`read_msh`] reads (1 GiB); [`read_msh_limited`] takes another limit.
+pub const MAX_MSH_BYTES: u64 = 1 << 30;
+
+/// Read a Gmsh mesh file into a `D`-dimensional mesh (at most [`MAX_MSH_BYTES`]).
 pub fn read_msh<const D: usize>(path: &Path) -> Result<Mesh<D>, FemError> {
-    let bytes = std::fs::read(path).map_err(|source| FemError::Io {
+    read_msh_limited(path, MAX_MSH_BYTES)
+}
+
+/// Read a Gmsh mesh file of at most `max_bytes` into a `D`-dimensional mesh. Only regular files
+/// are read (a FIFO or a device such as `/dev/zero` is refused before it is opened for reading,
+/// so it can neither block nor fill memory), and the read stops after `max_bytes`.
+pub fn read_msh_limited<const D: usize>(path: &Path, max_bytes: u64) -> Result<Mesh<D>, FemError> {
+    let bytes = read_regular_file(path, max_bytes)?;
+    parse_msh(&bytes, path)
+}
+
+/// The bytes of the regular file `path`, refusing anything else and anything over `max_bytes`.
+pub fn read_regular_file(path: &Path, max_bytes: u64) -> Result<Vec<u8>, FemError> {
+    use std::io::Read;
+    let io = |source: std::io::Error| FemError::Io {
         path: path.to_path_buf(),
         source,
-    })?;
-    parse_msh(&bytes, path)
+    };
+    let meta = std::fs::metadata(path).map_err(io)?;
+    if !meta.is_file() {
+        return Err(io(std::io::Error::new(
+            std::io::ErrorKind::InvalidInput,
+            "not a regular file (a directory, FIFO or device): meshes are read from regular files only",
+        )));
+    }
+    if meta.len() > max_bytes {
+        return Err(file_error(
+            path,
+            0,
+            format!(
+                "the file has {} bytes, more than the limit of {max_bytes}",
+                meta.len()
+            ),
+        ));
+    }
+    let file = std::fs::File::open(path).map_err(io)?;
+    let mut bytes = Vec::with_capacity(meta.len() as usize);
+    // The file may grow between the size check and the read: read one byte past the limit.
+    file.take(max_bytes + 1)
+        .read_to_end(&mut bytes)
+        .map_err(io)?;
+    if bytes.len() as u64 > max_bytes {
+        return Err(file_error(
+            path,
+            0,
+            format!("the file grew past the limit of {max_bytes} bytes while it was read"),
+        ));
+    }
+    Ok(bytes)
 }
 
 /// Parse the bytes of a Gmsh mesh file; `path` is only used in error messages.
@@ -106,11 +153,22 @@ fn parse_v2(bytes: &[u8], path: &Path) -> Result<(Vec<RawNode>, Vec<RawElement>)
         .map_err(|e| file_error(path, 0, format!("not valid UTF-8 text: {e}")))?;
     let lines: Vec<&str> = text.lines().collect();
     let find = |name: &str| lines.iter().position(|l| l.trim() == name);
+    // A count is at most the lines left in the file (each entry takes one): a corrupted count
+    // must not size an allocation or overflow an index.
     let count_at = |i: usize, what: &str| -> Result<usize, FemError> {
-        lines
+        let n: usize = lines
             .get(i)
             .and_then(|l| l.trim().parse().ok())
-            .ok_or_else(|| file_error(path, i + 1, format!("expected the number of {what}")))
+            .ok_or_else(|| file_error(path, i + 1, format!("expected the number of {what}")))?;
+        let left = lines.len().saturating_sub(i + 1);
+        if n > left {
+            return Err(file_error(
+                path,
+                i + 1,
+                format!("{n} {what} declared, but the file has only {left} more lines"),
+            ));
+        }
+        Ok(n)
     };
     let n0 = find("$Nodes").ok_or_else(|| file_error(path, 0, "no `$Nodes` section"))?;
     let nn = count_at(n0 + 1, "nodes")?;
@@ -153,7 +211,7 @@ fn parse_v2(bytes: &[u8], path: &Path) -> Result<(Vec<RawNode>, Vec<RawElement>)
             .ok_or_else(|| file_error(path, i + 1, "file ends inside `$Elements`"))?;
         let t: Result<Vec<u64>, _> = l.split_whitespace().map(str::parse::<u64>).collect();
         let t = t.map_err(|_| file_error(path, i + 1, format!("malformed element line `{l}`")))?;
-        if t.len() < 3 || t.len() < 3 + t[2] as usize {
+        if t.len() < 3 || (t.len() as u64 - 3) < t[2] {
             return Err(file_error(
                 path,
                 i + 1,

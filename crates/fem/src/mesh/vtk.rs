@@ -273,16 +273,26 @@ impl Vtu {
             tag(&mut xml, name, *c, a);
         }
         xml.push_str("</Cells>\n</Piece>\n</UnstructuredGrid>\n");
-        let mut file = std::io::BufWriter::new(std::fs::File::create(path).map_err(io)?);
-        file.write_all(xml.as_bytes()).map_err(io)?;
-        if encoding == Encoding::Binary {
-            file.write_all(b"<AppendedData encoding=\"raw\">\n_")
-                .map_err(io)?;
-            file.write_all(&blob).map_err(io)?;
-            file.write_all(b"\n</AppendedData>\n").map_err(io)?;
-        }
-        file.write_all(b"</VTKFile>\n").map_err(io)?;
-        file.flush().map_err(io)
+        // Written to a temporary name beside the target and renamed: a reader (ParaView
+        // following a running simulation) never sees a half-written file, and a write that
+        // fails (full disk) leaves no partial one behind.
+        let tmp = path.with_extension("vtu.tmp");
+        let write = || -> std::io::Result<()> {
+            let mut file = std::io::BufWriter::new(std::fs::File::create(&tmp)?);
+            file.write_all(xml.as_bytes())?;
+            if encoding == Encoding::Binary {
+                file.write_all(b"<AppendedData encoding=\"raw\">\n_")?;
+                file.write_all(&blob)?;
+                file.write_all(b"\n</AppendedData>\n")?;
+            }
+            file.write_all(b"</VTKFile>\n")?;
+            file.into_inner().map_err(|e| e.into_error())?;
+            std::fs::rename(&tmp, path)
+        };
+        write().map_err(|e| {
+            let _ = std::fs::remove_file(&tmp);
+            io(e)
+        })
     }
 
     /// Read a `.vtu` written by [`Vtu::write`] (either encoding).
@@ -518,9 +528,12 @@ impl Pvd {
         let tmp = self.path.with_extension("pvd.tmp");
         std::fs::write(&tmp, s)
             .and_then(|_| std::fs::rename(&tmp, &self.path))
-            .map_err(|source| FemError::Io {
-                path: self.path.clone(),
-                source,
+            .map_err(|source| {
+                let _ = std::fs::remove_file(&tmp);
+                FemError::Io {
+                    path: self.path.clone(),
+                    source,
+                }
             })
     }
 }

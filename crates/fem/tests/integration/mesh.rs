@@ -375,3 +375,81 @@ fn spherical_shell_fixture() {
         assert!(n[k].dot(&(x / r)) * expect > 0.9, "normal at radius {r}");
     }
 }
+
+#[test]
+fn corrupted_counts_are_errors_not_panics_or_allocations() {
+    // MSH 2.2 with node and element counts of 2⁶⁴ − 1: a capacity overflow once.
+    let huge = "18446744073709551615";
+    let nodes =
+        format!("$MeshFormat\n2.2 0 8\n$EndMeshFormat\n$Nodes\n{huge}\n1 0 0 0\n$EndNodes\n");
+    let e = parse_msh::<2>(nodes.as_bytes(), Path::new("n.msh")).unwrap_err();
+    assert!(e.to_string().contains("nodes declared"), "{e}");
+    let elements = "$MeshFormat\n2.2 0 8\n$EndMeshFormat\n$Nodes\n3\n1 0 0 0\n2 1 0 0\n3 0 1 0\n\
+                    $EndNodes\n$Elements\n18446744073709551615\n1 2 0 1 2 3\n$EndElements\n";
+    let e = parse_msh::<2>(elements.as_bytes(), Path::new("e.msh")).unwrap_err();
+    assert!(e.to_string().contains("elements declared"), "{e}");
+    // An element line claiming 2⁶⁴ − 1 tags.
+    let tags = format!(
+        "$MeshFormat\n2.2 0 8\n$EndMeshFormat\n$Nodes\n3\n1 0 0 0\n2 1 0 0\n3 0 1 0\n\
+         $EndNodes\n$Elements\n1\n1 2 {huge} 1 2 3\n$EndElements\n"
+    );
+    let e = parse_msh::<2>(tags.as_bytes(), Path::new("t.msh")).unwrap_err();
+    assert!(e.to_string().contains("malformed element line"), "{e}");
+    // Generators refuse what no index type holds.
+    let e =
+        generate::rectangle(Vector2::zeros(), Vector2::new(1.0, 1.0), usize::MAX, 2).unwrap_err();
+    assert!(e.to_string().contains("more than 2³² − 1 cells"), "{e}");
+    let e = generate::disk(Vector2::zeros(), 1.0, 1 << 40).unwrap_err();
+    assert!(e.to_string().contains("more than 2³² − 1 cells"), "{e}");
+}
+
+#[test]
+fn only_regular_files_of_bounded_size_are_read() {
+    use femp_fem::mesh::gmsh::read_msh_limited;
+    let e = read_msh::<2>(Path::new("/dev/zero")).unwrap_err();
+    assert!(e.to_string().contains("not a regular file"), "{e}");
+    let e = read_msh::<2>(&std::env::temp_dir()).unwrap_err();
+    assert!(e.to_string().contains("not a regular file"), "{e}");
+    let m = generate::rectangle(Vector2::zeros(), Vector2::new(1.0, 1.0), 4, 4).unwrap();
+    let p = tmp("limited.msh");
+    write_msh41(&p, &m).unwrap();
+    let size = std::fs::metadata(&p).unwrap().len();
+    assert!(read_msh_limited::<2>(&p, size).is_ok());
+    let e = read_msh_limited::<2>(&p, size - 1).unwrap_err();
+    assert!(e.to_string().contains("more than the limit"), "{e}");
+}
+
+proptest::proptest! {
+    #![proptest_config(proptest::prelude::ProptestConfig::with_cases(256))]
+
+    /// Any corruption of a committed mesh (flipped bits, a number replaced by 2⁶⁴ − 1, the file
+    /// cut short, a line dropped), in both MSH versions femp reads: a mesh or an error, never a
+    /// panic.
+    #[test]
+    fn corrupted_mesh_files_parse_to_a_mesh_or_an_error(
+        v41 in proptest::prelude::any::<bool>(),
+        ops in proptest::collection::vec((0u32..4, proptest::prelude::any::<u32>()), 1..5),
+    ) {
+        let disk = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../fixtures/meshes/disk_0.02.msh");
+        let m = read_msh::<2>(&disk).unwrap();
+        let mut b = if v41 { to_msh41(&m) } else { to_msh22(&m) }.into_bytes();
+        for &(op, at) in &ops {
+            let i = at as usize % b.len().max(1);
+            match op {
+                0 => { if !b.is_empty() { b[i] ^= 1 << (at % 8) } }
+                1 => {
+                    let end = b[i..].iter().position(|c| !c.is_ascii_digit()).map_or(b.len(), |e| i + e);
+                    b.splice(i..end, b"18446744073709551615".iter().copied());
+                }
+                2 => b.truncate(i),
+                _ => {
+                    let start = b[..i].iter().rposition(|&c| c == b'\n').map_or(0, |s| s + 1);
+                    let end = b[i..].iter().position(|&c| c == b'\n').map_or(b.len(), |e| i + e + 1);
+                    b.drain(start..end);
+                }
+            }
+        }
+        let r = std::panic::catch_unwind(|| parse_msh::<2>(&b, Path::new("c.msh")).map(|_| ()));
+        proptest::prop_assert!(r.is_ok(), "panicked after {ops:?}");
+    }
+}

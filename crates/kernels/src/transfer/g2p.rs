@@ -74,7 +74,8 @@ fn interp<const D: usize, const N: usize>(
         ) {
             let mut v = SVector::<f64, D>::zeros();
             w.for_each::<N>(&layout.stride, |o, wk, _| v += win[o] * wk);
-            *self.out.at(p) = v;
+            // SAFETY: `p` is the particle this call was given; no other task writes it (`gather`).
+            unsafe { *self.out.at(p) = v };
         }
         #[inline(always)]
         fn prefetch(&self, p: usize) {
@@ -156,8 +157,11 @@ fn apic_static<const D: usize, const N: usize>(
             // v = Σ w v_i;  S = Σ w v_i kᵀ;  B = Σ w v_i (h (k − f))ᵀ = h (S − v fᵀ).
             let (v, sm) = w.moments::<N>(&layout.stride, win);
             let f = SVector::<f64, D>::from_column_slice(frac);
-            *self.v.at(p) = v;
-            *self.b.at(p) = (sm - v * f.transpose()) * self.h;
+            // SAFETY: `p` is the particle this call was given; no other task writes it (`gather`).
+            unsafe {
+                *self.v.at(p) = v;
+                *self.b.at(p) = (sm - v * f.transpose()) * self.h;
+            }
         }
         #[inline(always)]
         fn prefetch(&self, p: usize) {
@@ -222,9 +226,12 @@ fn apic_moving<const D: usize, const N: usize>(
             });
             let f = SVector::<f64, D>::from_column_slice(frac);
             let vu = v * ubar.transpose();
-            *self.v.at(p) = v;
-            *self.b.at(p) = (sm - v * f.transpose()) * self.h + (q - q.transpose()) * 0.5
-                - (vu - vu.transpose()) * 0.5;
+            // SAFETY: `p` is the particle this call was given; no other task writes it (`gather`).
+            unsafe {
+                *self.v.at(p) = v;
+                *self.b.at(p) = (sm - v * f.transpose()) * self.h + (q - q.transpose()) * 0.5
+                    - (vu - vu.transpose()) * 0.5;
+            }
         }
         #[inline(always)]
         fn prefetch(&self, p: usize) {
@@ -313,7 +320,8 @@ fn flip<const D: usize, const N: usize>(
                 vnew += a * wk;
                 vold += b * wk;
             });
-            let vp = self.v.at(p);
+            // SAFETY: `p` is the particle this call was given; no other task writes it (`gather`).
+            let vp = unsafe { self.v.at(p) };
             *vp = vnew + (*vp - vold) * self.alpha;
         }
         #[inline(always)]
@@ -395,9 +403,11 @@ fn advect_inner<const D: usize, const N: usize>(
                     du += ui * w.grad(&layout.axes[k]).transpose();
                 }
             }
-            *self.x.at(p) += dx;
+            // SAFETY: `p` is the particle this call was given; no other task writes it (`gather`).
+            unsafe { *self.x.at(p) += dx };
             if let Some(fo) = &self.f {
-                let f = fo.at(p);
+                // SAFETY: `p` is the particle this call was given; no other task writes it (`gather`).
+                let f = unsafe { fo.at(p) };
                 *f = (SMatrix::<f64, D, D>::identity() + du) * *f;
             }
         }

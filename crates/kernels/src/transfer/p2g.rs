@@ -119,8 +119,11 @@ fn pic<const D: usize, const N: usize>(
         }
         #[inline(always)]
         fn flush(&self, i: usize, t: &MassMom<D>) {
-            *self.gm.at(i) += t.m;
-            *self.gp.at(i) += t.mv;
+            // SAFETY: node `i` is in this group's window, flushed by no other task (`scatter`).
+            unsafe {
+                *self.gm.at(i) += t.m;
+                *self.gp.at(i) += t.mv;
+            }
         }
         #[inline(always)]
         fn prefetch(&self, p: usize) {
@@ -204,8 +207,11 @@ fn apic<const D: usize, const N: usize>(
         }
         #[inline(always)]
         fn flush(&self, i: usize, t: &MassMom<D>) {
-            *self.gm.at(i) += t.m;
-            *self.gp.at(i) += t.mv;
+            // SAFETY: node `i` is in this group's window, flushed by no other task (`scatter`).
+            unsafe {
+                *self.gm.at(i) += t.m;
+                *self.gp.at(i) += t.mv;
+            }
         }
         #[inline(always)]
         fn prefetch(&self, p: usize) {
@@ -278,7 +284,8 @@ fn vector<const D: usize, const N: usize>(
         }
         #[inline(always)]
         fn flush(&self, i: usize, t: &SVector<f64, D>) {
-            *self.out.at(i) += *t;
+            // SAFETY: node `i` is in this group's window, flushed by no other task (`scatter`).
+            unsafe { *self.out.at(i) += *t };
         }
         #[inline(always)]
         fn prefetch(&self, p: usize) {

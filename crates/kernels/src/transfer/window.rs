@@ -349,14 +349,17 @@ impl<'a, T> ParticleOut<'a, T> {
         self.0.prefetch(p);
     }
 
-    /// Element `p`. Callers inside [`gather`]'s `body` pass the particle index they were
-    /// given, which no other task receives.
+    /// Element `p`.
+    ///
+    /// # Safety
+    ///
+    /// No other reference to element `p` may be live: callers inside [`gather`]'s `body` pass
+    /// only the particle index they were given, which no other task receives (`order` is a
+    /// permutation and groups partition the slots).
     #[inline(always)]
     #[allow(clippy::mut_from_ref)]
-    pub(crate) fn at(&self, p: usize) -> &mut T {
-        // SAFETY: `gather` hands each particle index to exactly one call of `body`
-        // (`order` is a permutation and groups partition the slots), and `body` only writes
-        // the element of the particle it was given.
+    pub(crate) unsafe fn at(&self, p: usize) -> &mut T {
+        // SAFETY: the caller guarantees exclusive access to element `p`.
         unsafe { self.0.get(p) }
     }
 }
@@ -369,12 +372,18 @@ impl<'a, T> NodeOut<'a, T> {
         Self(DisjointSlice::new(s))
     }
 
+    /// Node `i`.
+    ///
+    /// # Safety
+    ///
+    /// No other reference to node `i` may be live: callers inside [`scatter`]'s flush pass only
+    /// nodes of their own group's window — within one colour, group windows are disjoint
+    /// (G ≥ N − 1 and same-colour groups are ≥ 2 blocks apart on some axis), and colours are
+    /// separated by the end of a parallel loop.
     #[inline(always)]
     #[allow(clippy::mut_from_ref)]
-    pub(crate) fn at(&self, i: usize) -> &mut T {
-        // SAFETY: within one colour, group windows are disjoint (G ≥ N − 1 and same-colour
-        // groups are ≥ 2 blocks apart on some axis), so no node id is flushed by two tasks at
-        // once; colours are separated by the end of a parallel loop.
+    pub(crate) unsafe fn at(&self, i: usize) -> &mut T {
+        // SAFETY: the caller guarantees exclusive access to node `i`.
         unsafe { self.0.get(i) }
     }
 }
