@@ -128,6 +128,16 @@ pub fn sample_shape<const D: usize>(
                     message: e.to_string(),
                 })?;
             let (lo, hi) = mesh.bounding_box();
+            let thinnest = (hi - lo).min();
+            if thinnest < h {
+                return Err(SimError::Invalid {
+                    field: "mpm.grid_spacing".into(),
+                    message: format!(
+                        "{h} is coarser than the mesh of {field}.file is thick ({thinnest}): the \
+                         grid must resolve every MPM body with at least one cell across"
+                    ),
+                });
+            }
             let cells = mesh.cells().to_vec();
             let xs = mesh.vertices().to_vec();
             lattice(&mut out, lo, hi, s, |p| {

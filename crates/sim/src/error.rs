@@ -59,6 +59,35 @@ pub enum SimError {
         /// Simulated time reached.
         time: f64,
     },
+    /// Another run holds the output directory's lock.
+    #[error(
+        "{}: another femp run is writing into this directory (it holds {}); wait for it to end or choose another --out",
+        dir.display(),
+        crate::output::LOCK_FILE
+    )]
+    OutputBusy {
+        /// The output directory.
+        dir: PathBuf,
+    },
+    /// The output directory holds an earlier run's outputs.
+    #[error(
+        "{}: holds the outputs of an earlier run ({found}); pass --overwrite to replace them, or choose another --out",
+        dir.display()
+    )]
+    StaleOutput {
+        /// The output directory.
+        dir: PathBuf,
+        /// What was found.
+        found: String,
+    },
+    /// The scene would need more than the limits allow (memory, steps).
+    #[error("{field}: {message}")]
+    TooLarge {
+        /// The field that sets the size.
+        field: String,
+        /// The estimate, the limit and how to change either.
+        message: String,
+    },
     /// An error from a library crate while building the world.
     #[error("{context}: {message}")]
     Build {

@@ -14,15 +14,45 @@ struct Cli {
     command: Command,
 }
 
+/// How large a scene may be (checked before anything is allocated).
+#[derive(clap::Args, Clone, Copy)]
+struct LimitArgs {
+    /// Refuse scenes whose estimated memory exceeds this many GiB (default: 80 % of this
+    /// machine's memory). `femp check` prints the estimate.
+    #[arg(long, value_name = "GIB")]
+    memory_limit: Option<f64>,
+    /// Refuse scenes of more time steps than this (default 1e8).
+    #[arg(long, value_name = "STEPS")]
+    step_limit: Option<f64>,
+}
+
+impl LimitArgs {
+    fn apply(self, scene: &mut femp::scene::Scene) -> anyhow::Result<()> {
+        if let Some(g) = self.memory_limit {
+            anyhow::ensure!(g > 0.0, "--memory-limit {g}: must be positive (GiB)");
+            scene.limits.memory_bytes = g * 1024.0 * 1024.0 * 1024.0;
+        }
+        if let Some(n) = self.step_limit {
+            anyhow::ensure!(n > 0.0, "--step-limit {n}: must be positive");
+            scene.limits.steps = n;
+        }
+        Ok(())
+    }
+}
+
 #[derive(Subcommand)]
 enum Command {
     /// Run a scene and write frames, metrics.csv and summary.json into DIR.
     Run {
         /// Scene file (JSON; see docs/scenes.md).
         scene: PathBuf,
-        /// Output directory (created if missing).
+        /// Output directory (created if missing). Every file the run writes is inside it.
         #[arg(long, short)]
         out: PathBuf,
+        /// Replace the outputs of an earlier run in DIR (summary, metrics, frames, pictures);
+        /// without it such outputs are an error.
+        #[arg(long)]
+        overwrite: bool,
         /// Stop after this many steps.
         #[arg(long)]
         max_steps: Option<usize>,
@@ -36,34 +66,56 @@ enum Command {
         /// stress, FEM meshes with their edges, level sets shaded) and an animated GIF.
         #[arg(long)]
         pictures: bool,
-        /// Number of PNG key frames, evenly spaced from start to end (with --pictures).
-        #[arg(long, default_value_t = 6)]
-        key_frames: usize,
-        /// Number of GIF frames over the run; 0 for none (with --pictures).
-        #[arg(long, default_value_t = 60)]
-        gif_frames: usize,
+        /// Number of PNG key frames, evenly spaced from start to end (with --pictures; 0 or
+        /// 2–1000).
+        #[arg(long, default_value_t = 6, value_parser = clap::value_parser!(u16).range(0..=1000))]
+        key_frames: u16,
+        /// Number of GIF frames over the run; 0 for none (with --pictures; at most 10 000).
+        #[arg(long, default_value_t = 60, value_parser = clap::value_parser!(u16).range(0..=10_000))]
+        gif_frames: u16,
         /// 3D pictures: the axis drawn upwards, x, y or z (default: against gravity, else y).
         #[arg(long, value_parser = ["x", "y", "z"])]
         up: Option<String>,
         /// Picture size in pixels, WIDTHxHEIGHT (with --pictures).
         #[arg(long, default_value = "640x480", value_parser = parse_size)]
         picture_size: (u32, u32),
+        #[command(flatten)]
+        limits: LimitArgs,
     },
-    /// Validate a scene without running it (format, values, initial overlaps).
+    /// Validate a scene without running it (format, values, size, initial overlaps) and print
+    /// what it will cost (particles, grid nodes, unknowns, memory, steps, frame output).
     Check {
         /// Scene file.
         scene: PathBuf,
+        #[command(flatten)]
+        limits: LimitArgs,
     },
 }
 
+use femp::render::MAX_SIDE as MAX_PICTURE_SIDE;
+
 fn parse_size(s: &str) -> Result<(u32, u32), String> {
-    let bad = || format!("`{s}`: expected WIDTHxHEIGHT, e.g. 640x480, each at least 64");
+    let bad = || {
+        format!("`{s}`: expected WIDTHxHEIGHT, e.g. 640x480, each from 64 to {MAX_PICTURE_SIDE}")
+    };
     let (w, h) = s.split_once('x').ok_or_else(bad)?;
     let (w, h): (u32, u32) = (w.parse().map_err(|_| bad())?, h.parse().map_err(|_| bad())?);
-    if w < 64 || h < 64 {
+    if !(64..=MAX_PICTURE_SIDE).contains(&w) || !(64..=MAX_PICTURE_SIDE).contains(&h) {
         return Err(bad());
     }
     Ok((w, h))
+}
+
+/// Exit status of a run stopped by SIGINT, SIGTERM or SIGHUP (128 + SIGINT, as shells report
+/// Ctrl-C).
+const EXIT_INTERRUPTED: u8 = 130;
+
+/// A line on standard error, or nothing if it is closed (`femp run … 2>&1 | head -1`).
+macro_rules! say {
+    ($($t:tt)*) => {{
+        use std::io::Write as _;
+        let _ = writeln!(std::io::stderr().lock(), $($t)*);
+    }};
 }
 
 fn main() -> std::process::ExitCode {
@@ -71,8 +123,15 @@ fn main() -> std::process::ExitCode {
     match run(Cli::parse()) {
         Ok(()) => std::process::ExitCode::SUCCESS,
         Err(e) => {
-            eprintln!("error: {e:#}");
-            std::process::ExitCode::FAILURE
+            say!("error: {e:#}");
+            if matches!(
+                e.downcast_ref::<femp::SimError>(),
+                Some(femp::SimError::Interrupted { .. })
+            ) {
+                std::process::ExitCode::from(EXIT_INTERRUPTED)
+            } else {
+                std::process::ExitCode::FAILURE
+            }
         }
     }
 }
@@ -82,6 +141,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Run {
             scene,
             out,
+            overwrite,
             max_steps,
             no_frames,
             quiet,
@@ -90,21 +150,32 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             gif_frames,
             picture_size,
             up,
+            limits,
         } => {
-            let s = femp::scene::load(&scene)?;
-            // Ctrl-C stops after the current step; the files so far stay and the summary says so.
+            let mut s = femp::scene::load(&scene)?;
+            limits.apply(&mut s)?;
+            // Ctrl-C, SIGTERM and SIGHUP (what schedulers and closing terminals send) stop the
+            // run before its next Newton iteration; the files so far stay, the summary says
+            // `interrupted`, and femp exits with 130. A second signal stops at once.
             let interrupt = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
             let flag = interrupt.clone();
-            ctrlc::set_handler(move || flag.store(true, std::sync::atomic::Ordering::Relaxed))
-                .context("installing the Ctrl-C handler")?;
+            ctrlc::set_handler(move || {
+                if flag.swap(true, std::sync::atomic::Ordering::Relaxed) {
+                    say!("second interrupt: stopping now");
+                    std::process::exit(EXIT_INTERRUPTED.into());
+                }
+            })
+            .context("installing the signal handler")?;
             let opts = femp::run::RunOptions {
                 progress: !quiet,
                 max_steps,
                 no_frames,
                 interrupt: Some(interrupt),
+                overwrite,
+                metrics_in_file_only: true,
                 pictures: pictures.then(|| femp::render::PictureOptions {
-                    key_frames,
-                    gif_frames,
+                    key_frames: key_frames.into(),
+                    gif_frames: gif_frames.into(),
                     size: picture_size,
                     up: up.map(|a| match a.as_str() {
                         "x" => 0,
@@ -121,7 +192,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             } else {
                 format!("{} Newton iterations", r.summary.newton_iterations)
             };
-            eprintln!(
+            say!(
                 "{}: {} steps, t = {:.4} s, {:.1} s wall, {work}, max penetrations {} -> {}",
                 r.summary.scene,
                 r.summary.steps,
@@ -131,8 +202,16 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                 out.display()
             );
         }
-        Command::Check { scene } => {
-            let s = femp::scene::load(&scene)?;
+        Command::Check { scene, limits } => {
+            let mut s = femp::scene::load(&scene)?;
+            limits.apply(&mut s)?;
+            let estimate = femp::scene::size::estimate(&s)?;
+            let cost = format!(
+                "{}; limits: {} memory, {:.0e} steps",
+                estimate.describe(),
+                femp::scene::size::human_bytes(s.limits.memory_bytes),
+                s.limits.steps
+            );
             let dim = s.spec.dimension;
             let name = s.name.clone();
             fn describe<const D: usize>(w: &femp::World<D>) -> String {
@@ -163,7 +242,12 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                 2 => describe(&femp::World::<2>::build(s)?),
                 _ => describe(&femp::World::<3>::build(s)?),
             };
-            println!("{name}: valid {dim}D scene, {what}");
+            // A closed standard output (`femp check … | true`) is not an error of the scene.
+            use std::io::Write as _;
+            let _ = writeln!(
+                std::io::stdout().lock(),
+                "{name}: valid {dim}D scene, {what}\n  {cost}"
+            );
         }
     }
     Ok(())

@@ -752,13 +752,23 @@ impl<'a, const D: usize> StepObjective<'a, D> {
         let (el, rest) = rayon::join(
             || {
                 mpm.map_or(0.0, |m| {
-                    (0..m.x.len())
+                    // Fixed chunks summed in order: the same bits on any number of threads.
+                    const CHUNK: usize = 1024;
+                    let n = m.x.len();
+                    (0..n.div_ceil(CHUNK))
                         .into_par_iter()
-                        .with_min_len(1024)
-                        .map(|p| {
-                            m.volume[p]
-                                * m.bodies[m.body[p] as usize].material.energy_density(&fq[p])
+                        .map(|c| {
+                            (c * CHUNK..((c + 1) * CHUNK).min(n))
+                                .map(|p| {
+                                    m.volume[p]
+                                        * m.bodies[m.body[p] as usize]
+                                            .material
+                                            .energy_density(&fq[p])
+                                })
+                                .sum::<f64>()
                         })
+                        .collect::<Vec<f64>>()
+                        .into_iter()
                         .sum::<f64>()
                 })
             },
@@ -1041,10 +1051,13 @@ impl<const D: usize> Objective for StepObjective<'_, D> {
         let (mut pg, mut dq) = (std::mem::take(&mut sc.pg), std::mem::take(&mut sc.dq));
         pg.clear();
         dq.clear();
+        // The particles' motion along p; if it cannot be interpolated (a non-finite direction),
+        // no step is known to be safe.
+        let mut interpolated = true;
         if let Some(m) = self.mpm {
             pg.extend((0..self.n_grid).map(|i| Self::v(p, i)));
             dq.resize(m.x.len(), SVector::zeros());
-            let _ = transfer::interpolate(&m.stencils, &pg, &mut dq);
+            interpolated = transfer::interpolate(&m.stencils, &pg, &mut dq).is_ok();
         }
         let setup_s = clock.elapsed().as_secs_f64();
         // The particles' det F bound (parallel) alongside the elements' and CCD (sequential).
@@ -1071,6 +1084,7 @@ impl<const D: usize> Objective for StepObjective<'_, D> {
             (mpm_alpha, StepLimit::DetF),
             (fem_alpha, StepLimit::DetF),
             (ccd_alpha, StepLimit::Ccd),
+            (if interpolated { 1.0 } else { 0.0 }, StepLimit::Other),
         ] {
             if alpha < best.alpha {
                 best = StepBound {
@@ -1115,9 +1129,12 @@ impl<const D: usize> StepObjective<'_, D> {
             let off = self.fem_offset[b];
             pb.clear();
             pb.extend((0..body.x.len()).map(|v| Self::v(&p[off..], v)));
-            if let Ok(a) = body.elastic.max_inversion_free_step(&self.fem_x[b], pb) {
-                best = best.min(a);
-            }
+            // An error (a non-finite direction) leaves no step known to be inversion-free.
+            let a = body
+                .elastic
+                .max_inversion_free_step(&self.fem_x[b], pb)
+                .unwrap_or(0.0);
+            best = best.min(a);
         }
         best
     }

@@ -2,7 +2,7 @@
 //! written) and `summary.json`.
 
 use std::fs::File;
-use std::io::{BufWriter, Write};
+use std::io::{Seek, Write};
 use std::path::{Path, PathBuf};
 
 use femp_fem::Hyperelastic;
@@ -62,6 +62,12 @@ pub struct Summary {
     pub friction_unconverged_steps: usize,
     /// Largest penetration count in any step (BFEMP: must be 0).
     pub max_penetrations: usize,
+    /// Steps after which some point was inside another body (BFEMP: must be 0; augury: how
+    /// often the correction let bodies overlap).
+    pub penetrating_steps: usize,
+    /// What a user should know about a run that completed (also printed on stderr): bodies
+    /// that overlapped, friction iterations that hit their limit.
+    pub warnings: Vec<String>,
     /// Number of particles.
     pub particles: usize,
     /// Number of FEM vertices.
@@ -110,14 +116,41 @@ pub struct RunTiming {
     pub output_s: f64,
 }
 
-/// Writes a run's files as it goes.
+/// How a run treats its output directory.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct OutputOptions {
+    /// Replace the outputs of an earlier run found in the directory (otherwise they are an
+    /// error: stale frames mixed with new ones would be read as one run).
+    pub overwrite: bool,
+}
+
+/// The lock file that keeps two runs out of one directory.
+pub const LOCK_FILE: &str = ".femp.lock";
+
+/// Writes a run's files as it goes, every one of them inside its directory:
+///
+/// * the directory is locked for the run ([`LOCK_FILE`], an advisory lock the system releases
+///   when the process ends, however it ends): a second run into it is refused;
+/// * outputs of an earlier run (summary, metrics, `.pvd` collections, frames, pictures) are
+///   refused, or removed first with [`OutputOptions::overwrite`];
+/// * frames and `.pvd` collections are written to a temporary name and renamed, so none is ever
+///   half-written;
+/// * `metrics.csv` gets whole rows only: a row that cannot be written completely (full disk)
+///   is cut off again;
+/// * `summary.json` is replaced atomically, or — when even that fails, as on a full disk —
+///   overwritten in place.
 pub struct Output {
     dir: PathBuf,
-    metrics: BufWriter<File>,
+    metrics: File,
+    /// Bytes of `metrics.csv` that hold whole rows.
+    metrics_len: u64,
     pvds: Vec<(String, Pvd)>,
     frames: usize,
     /// Encoding of frames.
     pub encoding: Encoding,
+    /// Held for the run: the lock lives as long as the open file.
+    _lock: File,
+    removed: Vec<PathBuf>,
 }
 
 fn io(path: &Path) -> impl Fn(std::io::Error) -> SimError + '_ {
@@ -127,14 +160,132 @@ fn io(path: &Path) -> impl Fn(std::io::Error) -> SimError + '_ {
     }
 }
 
+/// Lock `dir` for one run: fails if another run holds it.
+fn lock(dir: &Path) -> Result<File, SimError> {
+    let path = dir.join(LOCK_FILE);
+    let file = std::fs::OpenOptions::new()
+        .read(true)
+        .write(true)
+        .create(true)
+        .truncate(false)
+        .open(&path)
+        .map_err(io(&path))?;
+    match file.try_lock() {
+        Ok(()) => {}
+        Err(std::fs::TryLockError::WouldBlock) => {
+            return Err(SimError::OutputBusy {
+                dir: dir.to_path_buf(),
+            });
+        }
+        Err(std::fs::TryLockError::Error(e)) => return Err(io(&path)(e)),
+    }
+    // Who holds it, for a curious user (the lock itself is the flock, not this text).
+    let mut f = &file;
+    let _ = f
+        .set_len(0)
+        .and_then(|_| writeln!(f, "{}", std::process::id()));
+    Ok(file)
+}
+
+/// The files an earlier femp run left in `dir`: `summary.json`, `metrics.csv`, `*.pvd`,
+/// `frames/*.vtu`, `pictures/key_*.png` and `pictures/animation.gif` (and their temporaries).
+/// Nothing else in the directory is femp's.
+pub fn earlier_outputs(dir: &Path) -> Vec<PathBuf> {
+    let list = |d: &Path, keep: &dyn Fn(&str) -> bool| -> Vec<PathBuf> {
+        let Ok(entries) = std::fs::read_dir(d) else {
+            return Vec::new();
+        };
+        let mut v: Vec<PathBuf> = entries
+            .filter_map(Result::ok)
+            .filter(|e| e.file_type().is_ok_and(|t| t.is_file()))
+            .filter(|e| e.file_name().to_str().is_some_and(keep))
+            .map(|e| e.path())
+            .collect();
+        v.sort();
+        v
+    };
+    let mut out = list(dir, &|n| {
+        matches!(
+            n,
+            "summary.json" | "summary.json.tmp" | "metrics.csv" | "metrics.csv.tmp"
+        ) || n.ends_with(".pvd")
+            || n.ends_with(".pvd.tmp")
+    });
+    out.extend(list(&dir.join("frames"), &|n| {
+        n.ends_with(".vtu") || n.ends_with(".vtu.tmp")
+    }));
+    out.extend(list(&dir.join("pictures"), &|n| {
+        (n.starts_with("key_") && n.ends_with(".png")) || n == "animation.gif"
+    }));
+    out
+}
+
+/// A short account of a list of earlier outputs: `summary.json, metrics.csv, 2 .pvd files,
+/// 82 frames (frames/), 7 pictures (pictures/)`.
+pub fn describe_outputs(dir: &Path, files: &[PathBuf]) -> String {
+    let (frames, pictures) = (dir.join("frames"), dir.join("pictures"));
+    let mut named = Vec::new();
+    let (mut pvd, mut nf, mut np) = (0, 0, 0);
+    for f in files {
+        let parent = f.parent().unwrap_or(dir);
+        if parent == frames {
+            nf += 1;
+        } else if parent == pictures {
+            np += 1;
+        } else if f.extension().is_some_and(|e| e == "pvd") {
+            pvd += 1;
+        } else if let Some(n) = f.file_name() {
+            named.push(n.to_string_lossy().into_owned());
+        }
+    }
+    if pvd > 0 {
+        named.push(format!(
+            "{pvd} .pvd file{}",
+            if pvd == 1 { "" } else { "s" }
+        ));
+    }
+    if nf > 0 {
+        named.push(format!(
+            "{nf} frame file{} (frames/)",
+            if nf == 1 { "" } else { "s" }
+        ));
+    }
+    if np > 0 {
+        named.push(format!(
+            "{np} picture{} (pictures/)",
+            if np == 1 { "" } else { "s" }
+        ));
+    }
+    named.join(", ")
+}
+
 impl Output {
-    /// Create `dir` (and `dir/frames`) and start `metrics.csv`.
-    pub fn create<const D: usize>(dir: &Path, world: &World<D>) -> Result<Self, SimError> {
+    /// Create and lock `dir` (and `dir/frames`), deal with an earlier run's outputs (refused,
+    /// or removed with `opts.overwrite`) and start `metrics.csv`.
+    pub fn create<const D: usize>(
+        dir: &Path,
+        world: &World<D>,
+        opts: OutputOptions,
+    ) -> Result<Self, SimError> {
+        std::fs::create_dir_all(dir).map_err(io(dir))?;
+        let lock = lock(dir)?;
+        let earlier = earlier_outputs(dir);
+        if !earlier.is_empty() {
+            if !opts.overwrite {
+                return Err(SimError::StaleOutput {
+                    dir: dir.to_path_buf(),
+                    found: describe_outputs(dir, &earlier),
+                });
+            }
+            for f in &earlier {
+                std::fs::remove_file(f).map_err(io(f))?;
+            }
+        }
         std::fs::create_dir_all(dir.join("frames")).map_err(io(dir))?;
         let mpath = dir.join("metrics.csv");
-        let mut metrics = BufWriter::new(File::create(&mpath).map_err(io(&mpath))?);
-        writeln!(metrics, "{}", csv_header::<D>()).map_err(io(&mpath))?;
-        metrics.flush().map_err(io(&mpath))?;
+        let mut metrics = File::create(&mpath).map_err(io(&mpath))?;
+        let header = format!("{}\n", csv_header::<D>());
+        metrics.write_all(header.as_bytes()).map_err(io(&mpath))?;
         let mut pvds = Vec::new();
         if world.mpm.is_some() {
             pvds.push((
@@ -143,6 +294,7 @@ impl Output {
             ));
         }
         for b in &world.fem {
+            // Names are validated as safe file names (scene::validate): the file stays in `dir`.
             pvds.push((
                 b.name.clone(),
                 Pvd::new(&dir.join(format!("{}.pvd", b.name))),
@@ -151,17 +303,43 @@ impl Output {
         Ok(Self {
             dir: dir.to_path_buf(),
             metrics,
+            metrics_len: header.len() as u64,
             pvds,
             frames: 0,
             encoding: Encoding::Binary,
+            _lock: lock,
+            removed: earlier,
         })
     }
 
-    /// Append one metrics row and flush it.
+    /// The outputs of an earlier run that [`Output::create`] removed (with `overwrite`).
+    pub fn removed(&self) -> &[PathBuf] {
+        &self.removed
+    }
+
+    /// The output directory.
+    pub fn dir(&self) -> &Path {
+        &self.dir
+    }
+
+    /// Append one metrics row. The row is written whole or not at all: if the write fails
+    /// part-way, the file is cut back to its last whole row before the error is returned.
     pub fn metrics_row<const D: usize>(&mut self, m: &Metrics) -> Result<(), SimError> {
-        let path = self.dir.join("metrics.csv");
-        writeln!(self.metrics, "{}", m.csv_row::<D>()).map_err(io(&path))?;
-        self.metrics.flush().map_err(io(&path))
+        let mut row = m.csv_row::<D>();
+        row.push('\n');
+        match self.metrics.write_all(row.as_bytes()) {
+            Ok(()) => {
+                self.metrics_len += row.len() as u64;
+                Ok(())
+            }
+            Err(e) => {
+                let _ = self.metrics.set_len(self.metrics_len);
+                let _ = self
+                    .metrics
+                    .seek(std::io::SeekFrom::Start(self.metrics_len));
+                Err(io(&self.dir.join("metrics.csv"))(e))
+            }
+        }
     }
 
     /// Number of frames written.
@@ -173,9 +351,12 @@ impl Output {
     pub fn frame<const D: usize>(&mut self, world: &World<D>) -> Result<(), SimError> {
         let k = self.frames;
         let mut part = 0;
-        let fem_err = |e: femp_fem::FemError| SimError::Build {
-            context: "writing frames".into(),
-            message: e.to_string(),
+        let fem_err = |e: femp_fem::FemError| match e {
+            femp_fem::FemError::Io { path, source } => SimError::Io { path, source },
+            e => SimError::Build {
+                context: "writing frames".into(),
+                message: e.to_string(),
+            },
         };
         if let Some(m) = &world.mpm {
             let path = self
@@ -229,13 +410,42 @@ impl Output {
         Ok(())
     }
 
-    /// Write `summary.json`.
+    /// Write `summary.json`: to a temporary file renamed over it (readers never see half a
+    /// summary); if that fails — a full disk has no room for the temporary — the summary is
+    /// overwritten in place, padded with spaces to the old length so no stale text follows it.
     pub fn summary(&self, s: &Summary) -> Result<(), SimError> {
         let path = self.dir.join("summary.json");
         let text = serde_json::to_string_pretty(s).map_err(|e| SimError::Build {
             context: "summary.json".into(),
             message: e.to_string(),
         })?;
-        std::fs::write(&path, text).map_err(io(&path))
+        write_replacing(&path, text.as_bytes()).map_err(io(&path))
     }
+}
+
+/// Replace `path` by `bytes` atomically (temporary file + rename) or, when that fails, in
+/// place: written over the old contents from the start, padded with spaces to the old length
+/// (JSON allows trailing whitespace). The in-place write needs no new disk blocks when the new
+/// text is no longer than the old, which is what lets a run record its failure on a full disk.
+pub fn write_replacing(path: &Path, bytes: &[u8]) -> std::io::Result<()> {
+    let tmp = path.with_extension("json.tmp");
+    let atomic = std::fs::write(&tmp, bytes).and_then(|()| std::fs::rename(&tmp, path));
+    let Err(first) = atomic else {
+        return Ok(());
+    };
+    let _ = std::fs::remove_file(&tmp);
+    let in_place = || -> std::io::Result<()> {
+        let mut f = std::fs::OpenOptions::new().write(true).open(path)?;
+        let old = f.metadata()?.len() as usize;
+        f.write_all(bytes)?;
+        if old > bytes.len() {
+            let mut pad = vec![b' '; old - bytes.len()];
+            if let Some(last) = pad.last_mut() {
+                *last = b'\n';
+            }
+            f.write_all(&pad)?;
+        }
+        Ok(())
+    };
+    in_place().map_err(|_| first)
 }

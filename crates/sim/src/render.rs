@@ -38,6 +38,13 @@ pub struct PictureOptions {
     pub up: Option<usize>,
 }
 
+/// The most key frames [`Pictures`] draws.
+pub const MAX_KEY_FRAMES: usize = 1000;
+/// The most GIF frames [`Pictures`] draws.
+pub const MAX_GIF_FRAMES: usize = 10_000;
+/// The largest picture side (pixels): a frame is held in memory while it is drawn.
+pub const MAX_SIDE: u32 = 8192;
+
 impl Default for PictureOptions {
     fn default() -> Self {
         Self {
@@ -190,10 +197,19 @@ impl Pictures {
         duration: f64,
         opts: PictureOptions,
     ) -> Result<Self, SimError> {
-        if opts.key_frames < 2 && opts.key_frames != 0 || opts.size.0 < 64 || opts.size.1 < 64 {
+        let side = 64..=MAX_SIDE;
+        if opts.key_frames < 2 && opts.key_frames != 0
+            || opts.key_frames > MAX_KEY_FRAMES
+            || opts.gif_frames > MAX_GIF_FRAMES
+            || !side.contains(&opts.size.0)
+            || !side.contains(&opts.size.1)
+        {
             return Err(crate::error::invalid(
                 "pictures",
-                "need 0 or ≥ 2 key frames and at least 64 × 64 pixels",
+                format!(
+                    "need 0 or 2–{MAX_KEY_FRAMES} key frames, at most {MAX_GIF_FRAMES} GIF frames \
+                     and 64 to {MAX_SIDE} pixels a side"
+                ),
             ));
         }
         register_fonts();

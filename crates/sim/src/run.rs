@@ -1,14 +1,21 @@
 //! Running a scene to its end: steps, output, progress, and a summary that says how it ended.
+//!
+//! A run writes only inside its output directory ([`Output`] locks it and refuses or replaces
+//! an earlier run's files). `summary.json` is kept current while the run goes (at most a second
+//! old), and however the run ends — completed, a failed step, a failed write, an interrupt —
+//! the summary says so and everything written up to then stays: whole metrics rows, whole
+//! frames.
 
-use std::io::IsTerminal;
+use std::io::{IsTerminal, Write};
 use std::path::Path;
 use std::time::Instant;
 
 use crate::error::SimError;
 use crate::metrics::Metrics;
-use crate::output::{Output, Summary};
+use crate::output::{Output, OutputOptions, Summary};
 use crate::render::{PictureOptions, Pictures};
 use crate::scene::Scene;
+use crate::step::StepReport;
 use crate::world::World;
 
 /// Options of a run.
@@ -20,11 +27,17 @@ pub struct RunOptions {
     pub max_steps: Option<usize>,
     /// Do not write frames (metrics and summary only).
     pub no_frames: bool,
-    /// Set from elsewhere (e.g. a Ctrl-C handler) to stop the run after the current step; the
-    /// run then ends with status `interrupted` and [`SimError::Interrupted`].
+    /// Set from elsewhere (e.g. a signal handler) to stop the run — between steps, or inside a
+    /// step before its next Newton iteration; the run then ends with status `interrupted` and
+    /// [`SimError::Interrupted`].
     pub interrupt: Option<std::sync::Arc<std::sync::atomic::AtomicBool>>,
     /// Draw key frames (PNG) and an animated GIF into `out_dir/pictures` ([`crate::render`]).
     pub pictures: Option<PictureOptions>,
+    /// Replace an earlier run's outputs in the output directory instead of refusing them.
+    pub overwrite: bool,
+    /// Keep no per-step metrics in memory ([`RunResult::metrics`] holds the initial state only;
+    /// `metrics.csv` has them all) — for long runs, whose metrics would grow without bound.
+    pub metrics_in_file_only: bool,
 }
 
 /// Everything a finished run measured, for callers that use femp as a library.
@@ -54,6 +67,21 @@ pub fn run_d<const D: usize>(
     run_with::<D>(scene, out_dir, opts, |_, _| {})
 }
 
+/// A line on standard error that may not be there (closed by `| head`, say): progress and
+/// warnings are worth nothing to a run if printing them would stop it.
+pub(crate) fn note(args: std::fmt::Arguments) {
+    let _ = writeln!(std::io::stderr().lock(), "{args}");
+}
+
+/// The number of steps to cover `duration` with steps of `dt` (at least 1).
+pub fn step_count(duration: f64, dt: f64) -> usize {
+    // The float-to-int cast saturates; scene limits refuse absurd counts before a run starts.
+    ((duration / dt) - 1e-9).ceil().max(1.0) as usize
+}
+
+/// How often `summary.json` is rewritten while a run goes.
+const SUMMARY_EVERY_S: f64 = 1.0;
+
 /// Run, calling `inspect(world, metrics)` after every step.
 pub fn run_with<const D: usize>(
     scene: Scene,
@@ -63,11 +91,23 @@ pub fn run_with<const D: usize>(
 ) -> Result<RunResult, SimError> {
     let start = Instant::now();
     let name = scene.name.clone();
-    let duration = scene.spec.time.duration;
-    let frame_dt = scene.spec.time.frame_interval.unwrap_or(scene.spec.time.dt);
     let mut world = World::<D>::build(scene)?;
-    let mut out = Output::create(out_dir, &world)?;
-    let total_steps = ((duration / world.dt) - 1e-9).ceil().max(1.0) as usize;
+    world.set_interrupt(opts.interrupt.clone());
+    let mut out = Output::create(
+        out_dir,
+        &world,
+        OutputOptions {
+            overwrite: opts.overwrite,
+        },
+    )?;
+    if !out.removed().is_empty() && opts.progress {
+        note(format_args!(
+            "[{name}] removed the outputs of an earlier run from {}: {}",
+            out_dir.display(),
+            crate::output::describe_outputs(out_dir, out.removed())
+        ));
+    }
+    let total_steps = step_count(world.scene.spec.time.duration, world.dt);
     let total_steps = opts.max_steps.map_or(total_steps, |m| m.min(total_steps));
     let mut summary = Summary {
         scene: name.clone(),
@@ -89,23 +129,104 @@ pub fn run_with<const D: usize>(
     };
     // A summary from the start: a run killed outright still says `running` and what it is.
     out.summary(&summary)?;
-    let mut all = Vec::with_capacity(total_steps + 1);
+    let mut all = Vec::new();
+    let mut pictures = None;
+    let ended = drive(
+        &mut world,
+        &mut out,
+        &mut summary,
+        &mut all,
+        &mut pictures,
+        total_steps,
+        opts,
+        start,
+        &mut inspect,
+    );
+    if let Some(p) = pictures.take() {
+        match (p.finish(&world), &ended) {
+            (Ok(_), _) => {}
+            // The pictures up to a failure are worth keeping; a drawing error then must not
+            // hide the run's own error.
+            (Err(d), Err(_)) => note(format_args!("warning: {d}")),
+            (Err(d), Ok(())) => {
+                return Err(finish_failed(&mut summary, &out, start, d));
+            }
+        }
+    }
+    if let Err(e) = ended {
+        return Err(finish_failed(&mut summary, &out, start, e));
+    }
+    summary.status = "completed".into();
+    summary.wall_s = start.elapsed().as_secs_f64();
+    summary.frames = out.frames();
+    if summary.penetrating_steps > 0 {
+        let w = format!(
+            "points were inside another body after {} of {} steps (at most {} at once): the \
+             contact did not keep the bodies apart; see `penetrations` in metrics.csv",
+            summary.penetrating_steps, summary.steps, summary.max_penetrations
+        );
+        note(format_args!("[{name}] warning: {w}"));
+        summary.warnings.push(w);
+    }
+    if summary.friction_unconverged_steps > 0 {
+        summary.warnings.push(format!(
+            "the friction iteration hit solver.max_friction_iterations in {} steps",
+            summary.friction_unconverged_steps
+        ));
+    }
+    out.summary(&summary)?;
+    Ok(RunResult {
+        summary,
+        metrics: all,
+    })
+}
+
+/// Record a run's end by error in the summary (as far as the disk lets us) and hand the error
+/// back.
+fn finish_failed(summary: &mut Summary, out: &Output, start: Instant, e: SimError) -> SimError {
+    summary.status = if matches!(e, SimError::Interrupted { .. }) {
+        "interrupted".into()
+    } else {
+        "failed".into()
+    };
+    summary.error = Some(e.to_string());
+    summary.wall_s = start.elapsed().as_secs_f64();
+    summary.frames = out.frames();
+    if let Err(w) = out.summary(summary) {
+        note(format_args!(
+            "warning: could not record the run's end in summary.json: {w}"
+        ));
+    }
+    e
+}
+
+/// The steps of a run, with their output; returns at the first error (of a step or a write).
+fn drive<const D: usize>(
+    world: &mut World<D>,
+    out: &mut Output,
+    summary: &mut Summary,
+    all: &mut Vec<Metrics>,
+    pictures: &mut Option<Pictures>,
+    total_steps: usize,
+    opts: &RunOptions,
+    start: Instant,
+    inspect: &mut impl FnMut(&World<D>, &Metrics),
+) -> Result<(), SimError> {
+    let name = summary.scene.clone();
+    let frame_dt = world.scene.spec.time.frame_interval.unwrap_or(world.dt);
     let m0 = world.measure();
     out.metrics_row::<D>(&m0)?;
     summary.max_penetrations = m0.penetrations;
     all.push(m0);
     if !opts.no_frames {
-        out.frame(&world)?;
+        out.frame(world)?;
     }
-    let mut pictures = match &opts.pictures {
-        Some(p) => {
-            let dir = out_dir.join("pictures");
-            let mut pics = Pictures::new(&world, &dir, total_steps as f64 * world.dt, p.clone())?;
-            pics.update(&world)?;
-            Some(pics)
-        }
-        None => None,
-    };
+    if let Some(p) = &opts.pictures {
+        let dir = out.dir().join("pictures");
+        let mut pics = Pictures::new(world, &dir, total_steps as f64 * world.dt, p.clone())?;
+        pics.update(world)?;
+        *pictures = Some(pics);
+    }
     let mut next_frame = frame_dt;
     let bar = (opts.progress && std::io::stderr().is_terminal()).then(|| {
         let b = indicatif::ProgressBar::new(total_steps as u64);
@@ -118,13 +239,10 @@ pub fn run_with<const D: usize>(
         b
     });
     let mut last_line = Instant::now();
+    let mut last_summary = Instant::now();
     for _ in 0..total_steps {
         let t0 = Instant::now();
-        let step = if opts
-            .interrupt
-            .as_ref()
-            .is_some_and(|f| f.load(std::sync::atomic::Ordering::Relaxed))
-        {
+        let step = if world.interrupted() {
             Err(SimError::Interrupted {
                 step: world.step,
                 time: world.time,
@@ -132,116 +250,103 @@ pub fn run_with<const D: usize>(
         } else {
             world.step()
         };
-        match step {
-            Ok(report) => {
-                let clock = Instant::now();
-                let mut m = world.measure();
-                summary.timing.measure_s += clock.elapsed().as_secs_f64();
-                let clock = Instant::now();
-                m.newton_iterations = report.newton_iterations;
-                m.friction_iterations = report.friction_iterations;
-                m.contact_terms = report.contact_terms;
-                m.backtracks = report.stats.backtracks;
-                m.ccd_limited = report.stats.limited_by_ccd;
-                m.exact_hessians = report.stats.exact_iterations;
-                m.reused_hessians = report.stats.reused_hessians;
-                m.pcg_iterations = report.stats.pcg_iterations;
-                m.wall_s = t0.elapsed().as_secs_f64();
-                if report.contact_terms > 0 {
-                    m.min_distance = m.min_distance.min(report.min_distance);
-                }
-                out.metrics_row::<D>(&m)?;
-                summary.steps = world.step;
-                summary.simulated_time = world.time;
-                summary.newton_iterations += report.newton_iterations;
-                summary.friction_iterations += report.friction_iterations;
-                summary.exact_hessian_iterations += report.stats.exact_iterations;
-                summary.exact_hessian_rejections += report.stats.exact_rejections;
-                summary.reused_hessians += report.stats.reused_hessians;
-                summary.gradient_steps += report.stats.gradient_steps;
-                summary.pcg_iterations += report.stats.pcg_iterations;
-                summary.pcg_fallbacks += report.stats.pcg_fallbacks;
-                summary.friction_unconverged_steps += usize::from(!report.friction_converged);
-                summary.max_penetrations = summary.max_penetrations.max(m.penetrations);
-                let s = &report.stats;
-                let tm = &mut summary.timing;
-                tm.transfers_s += report.transfers_s;
-                tm.setup_s += report.setup_s;
-                tm.assembly_s += s.assembly_s;
-                tm.symbolic_s += s.symbolic_s;
-                tm.numeric_s += s.numeric_s;
-                tm.solve_s += s.solve_s;
-                tm.pcg_s += s.pcg_s;
-                tm.line_search_s += s.line_search_s;
-                tm.objective.add(&report.objective);
-                if !opts.no_frames && world.time + 1e-12 >= next_frame {
-                    out.frame(&world)?;
-                    next_frame += frame_dt;
-                }
-                if let Some(p) = &mut pictures {
-                    p.update(&world)?;
-                }
-                inspect(&world, &m);
-                let msg = if world.augury.is_some() {
-                    format!("t = {:.4} s", world.time)
-                } else {
-                    format!(
-                        "t = {:.4} s, Newton {}",
-                        world.time, report.newton_iterations
-                    )
-                };
-                if let Some(b) = &bar {
-                    b.set_message(msg);
-                    b.inc(1);
-                } else if opts.progress
-                    && (last_line.elapsed().as_secs_f64() > 10.0 || world.step == total_steps)
-                {
-                    eprintln!(
-                        "[{name}] step {}/{total_steps}, {msg}, {:.1} s",
-                        world.step,
-                        start.elapsed().as_secs_f64()
-                    );
-                    last_line = Instant::now();
-                }
-                summary.timing.output_s += clock.elapsed().as_secs_f64();
-                all.push(m);
-            }
+        let report = match step {
+            Ok(r) => r,
             Err(e) => {
                 if let Some(b) = &bar {
                     b.abandon();
                 }
-                summary.status = if matches!(e, SimError::Interrupted { .. }) {
-                    "interrupted".into()
-                } else {
-                    "failed".into()
-                };
-                summary.error = Some(e.to_string());
-                summary.wall_s = start.elapsed().as_secs_f64();
-                summary.frames = out.frames();
-                if let Some(p) = pictures.take() {
-                    // The pictures up to the failure are worth keeping; a drawing error here
-                    // must not hide the run's own error.
-                    if let Err(d) = p.finish(&world) {
-                        eprintln!("warning: {d}");
-                    }
-                }
-                out.summary(&summary)?;
                 return Err(e);
             }
+        };
+        let clock = Instant::now();
+        let mut m = world.measure();
+        summary.timing.measure_s += clock.elapsed().as_secs_f64();
+        let clock = Instant::now();
+        record(&mut m, summary, &report);
+        m.wall_s = t0.elapsed().as_secs_f64();
+        out.metrics_row::<D>(&m)?;
+        summary.steps = world.step;
+        summary.simulated_time = world.time;
+        if !opts.no_frames && world.time + 1e-12 >= next_frame {
+            out.frame(world)?;
+            next_frame += frame_dt;
+        }
+        if let Some(p) = pictures.as_mut() {
+            p.update(world)?;
+        }
+        inspect(world, &m);
+        let msg = if world.augury.is_some() {
+            format!("t = {:.4} s", world.time)
+        } else {
+            format!(
+                "t = {:.4} s, Newton {}",
+                world.time, report.newton_iterations
+            )
+        };
+        if let Some(b) = &bar {
+            b.set_message(msg);
+            b.inc(1);
+        } else if opts.progress
+            && (last_line.elapsed().as_secs_f64() > 10.0 || world.step == total_steps)
+        {
+            note(format_args!(
+                "[{name}] step {}/{total_steps}, {msg}, {:.1} s",
+                world.step,
+                start.elapsed().as_secs_f64()
+            ));
+            last_line = Instant::now();
+        }
+        if last_summary.elapsed().as_secs_f64() >= SUMMARY_EVERY_S {
+            summary.wall_s = start.elapsed().as_secs_f64();
+            summary.frames = out.frames();
+            out.summary(summary)?;
+            last_summary = Instant::now();
+        }
+        summary.timing.output_s += clock.elapsed().as_secs_f64();
+        if !opts.metrics_in_file_only {
+            all.push(m);
         }
     }
     if let Some(b) = &bar {
         b.finish();
     }
-    if let Some(p) = pictures.take() {
-        p.finish(&world)?;
+    Ok(())
+}
+
+/// Copy a step's solver report into its metrics row and add it to the summary's totals.
+fn record(m: &mut Metrics, summary: &mut Summary, report: &StepReport) {
+    let s = &report.stats;
+    m.newton_iterations = report.newton_iterations;
+    m.friction_iterations = report.friction_iterations;
+    m.contact_terms = report.contact_terms;
+    m.backtracks = s.backtracks;
+    m.ccd_limited = s.limited_by_ccd;
+    m.exact_hessians = s.exact_iterations;
+    m.reused_hessians = s.reused_hessians;
+    m.pcg_iterations = s.pcg_iterations;
+    if report.contact_terms > 0 {
+        m.min_distance = m.min_distance.min(report.min_distance);
     }
-    summary.status = "completed".into();
-    summary.wall_s = start.elapsed().as_secs_f64();
-    summary.frames = out.frames();
-    out.summary(&summary)?;
-    Ok(RunResult {
-        summary,
-        metrics: all,
-    })
+    summary.newton_iterations += report.newton_iterations;
+    summary.friction_iterations += report.friction_iterations;
+    summary.exact_hessian_iterations += s.exact_iterations;
+    summary.exact_hessian_rejections += s.exact_rejections;
+    summary.reused_hessians += s.reused_hessians;
+    summary.gradient_steps += s.gradient_steps;
+    summary.pcg_iterations += s.pcg_iterations;
+    summary.pcg_fallbacks += s.pcg_fallbacks;
+    summary.friction_unconverged_steps += usize::from(!report.friction_converged);
+    summary.max_penetrations = summary.max_penetrations.max(m.penetrations);
+    summary.penetrating_steps += usize::from(m.penetrations > 0);
+    let tm = &mut summary.timing;
+    tm.transfers_s += report.transfers_s;
+    tm.setup_s += report.setup_s;
+    tm.assembly_s += s.assembly_s;
+    tm.symbolic_s += s.symbolic_s;
+    tm.numeric_s += s.numeric_s;
+    tm.solve_s += s.solve_s;
+    tm.pcg_s += s.pcg_s;
+    tm.line_search_s += s.line_search_s;
+    tm.objective.add(&report.objective);
 }

@@ -85,8 +85,16 @@ impl<const D: usize> World<D> {
     /// Advance by one time step.
     pub fn step(&mut self) -> Result<StepReport, SimError> {
         if self.augury.is_some() {
+            // A bounded amount of explicit work: the interrupt flag is checked before it.
+            if self.interrupted() {
+                return Err(SimError::Interrupted {
+                    step: self.step,
+                    time: self.time,
+                });
+            }
             return self.step_augury();
         }
+        // BFEMP: the Newton solver checks the interrupt flag before every iteration.
         let dt = self.dt;
         let t1 = self.time + dt;
         let fail = |world: &World<D>, message: String| SimError::StepFailed {
@@ -201,17 +209,23 @@ impl<const D: usize> World<D> {
             let stats = self
                 .newton
                 .minimize_to(&mut obj, &mut x, &fixed, &target, &params)
-                .map_err(|e| SimError::StepFailed {
-                    step: self.step,
-                    time: self.time,
-                    message: format!(
-                        "{e}{}",
-                        if any_friction {
-                            format!(" (friction iteration {})", j + 1)
-                        } else {
-                            String::new()
-                        }
-                    ),
+                .map_err(|e| match e {
+                    femp_solver::SolveError::Interrupted { .. } => SimError::Interrupted {
+                        step: self.step,
+                        time: self.time,
+                    },
+                    e => SimError::StepFailed {
+                        step: self.step,
+                        time: self.time,
+                        message: format!(
+                            "{e}{}",
+                            if any_friction {
+                                format!(" (friction iteration {})", j + 1)
+                            } else {
+                                String::new()
+                            }
+                        ),
+                    },
                 })?;
             report.newton_iterations += stats.iterations;
             add_stats(&mut report.stats, &stats);

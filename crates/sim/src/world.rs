@@ -225,6 +225,9 @@ pub struct World<const D: usize> {
     pub newton: Newton,
     /// The explicit system of an augury scene (`None` for BFEMP).
     pub augury: Option<crate::augury::AuguryState<D>>,
+    /// Once set, the step in progress stops before its next Newton iteration
+    /// ([`World::set_interrupt`]).
+    interrupt: Option<std::sync::Arc<std::sync::atomic::AtomicBool>>,
 }
 
 fn make_material(m: &MaterialSpec) -> Result<Material, SimError> {
@@ -269,6 +272,8 @@ impl<const D: usize> World<D> {
             "World::<{D}>::build called for a {}D scene",
             spec.dimension
         );
+        // Nothing is allocated for a scene that cannot fit.
+        crate::scene::size::check(&crate::scene::size::estimate(&scene)?, &scene.limits)?;
         let gravity = spec
             .gravity
             .as_deref()
@@ -576,16 +581,34 @@ impl<const D: usize> World<D> {
             boundaries,
             newton: Newton::new(),
             augury: None,
+            interrupt: None,
         };
         world.check_overlaps()?;
         let mut world = world;
         if world.scene.spec.method == crate::scene::Method::Augury {
+            check_augury_overlaps(&world.fem)?;
             world.augury = Some(crate::augury::AuguryState::build(
                 &world.scene.spec,
                 &world.fem,
             )?);
         }
         Ok(world)
+    }
+
+    /// A flag that stops the run: once set (by a signal handler, say), [`World::step`] returns
+    /// [`SimError::Interrupted`] before its next Newton iteration, so a step that never
+    /// converges can still be stopped. An augury step is a bounded amount of explicit work and
+    /// is checked before it starts.
+    pub fn set_interrupt(&mut self, flag: Option<std::sync::Arc<std::sync::atomic::AtomicBool>>) {
+        self.newton.set_interrupt(flag.clone());
+        self.interrupt = flag;
+    }
+
+    /// Whether the interrupt flag is set.
+    pub fn interrupted(&self) -> bool {
+        self.interrupt
+            .as_ref()
+            .is_some_and(|f| f.load(std::sync::atomic::Ordering::Relaxed))
     }
 
     /// Reject bodies that start overlapping (BFEMP eq. 15): a particle or FEM vertex inside (or on
@@ -606,39 +629,8 @@ impl<const D: usize> World<D> {
                     .map(|&v| self.fem[*body].x[v])
                     .collect(),
             };
-            let mut inside = inside_elements(&points, &target.mesh, &target.x);
-            if !inside.is_empty() {
-                inside.sort_unstable();
-                inside.dedup_by_key(|(k, _)| *k);
-                // The worst offender: the point deepest inside (farthest from the boundary).
-                let (k, e, depth) = inside
-                    .par_iter()
-                    .map(|&(k, e)| {
-                        let d = target
-                            .facets
-                            .iter()
-                            .map(|f| point_facet_distance(&points[k], f, &target.x))
-                            .fold(f64::INFINITY, f64::min);
-                        (k, e, d)
-                    })
-                    .reduce(|| (0, 0, -1.0), |a, b| if b.2 > a.2 { b } else { a });
-                let (lo, hi) = target.mesh.bounding_box();
-                let where_ = if depth <= 1e-12 * (hi - lo).norm() {
-                    "lies on the boundary (distance 0)".to_string()
-                } else {
-                    format!("is {depth:.3e} m inside")
-                };
-                return Err(SimError::Overlap {
-                    a: pair.names.0.clone(),
-                    b: pair.names.1.clone(),
-                    detail: format!(
-                        "{} point(s) of `{}` lie inside or on `{}`; the deepest, point {k} at {:?}, {where_} (element {e})",
-                        inside.len(),
-                        pair.names.0,
-                        pair.names.1,
-                        points[k].as_slice(),
-                    ),
-                });
+            if let Some(e) = points_inside(&points, target, &pair.names, false) {
+                return Err(e);
             }
             // Touching the boundary (distance 0) is infeasible too.
             let mut c = femp_contact::broad_phase::Candidates::default();
@@ -709,6 +701,77 @@ impl<const D: usize> World<D> {
     }
 }
 
+/// The overlap error for `points` (of body `names.0`) inside or on the elements of `target`
+/// (body `names.1`), naming the deepest; `None` if there is none. With `touching_allowed`,
+/// points on the boundary (distance 0, to round-off) are not an overlap: the augury method
+/// starts from bodies in contact.
+fn points_inside<const D: usize>(
+    points: &[SVector<f64, D>],
+    target: &FemBody<D>,
+    names: &(String, String),
+    touching_allowed: bool,
+) -> Option<SimError> {
+    let mut inside = inside_elements(points, &target.mesh, &target.x);
+    if inside.is_empty() {
+        return None;
+    }
+    inside.sort_unstable();
+    inside.dedup_by_key(|(k, _)| *k);
+    let (lo, hi) = target.mesh.bounding_box();
+    // Round-off of placed meshes: a point this close to the boundary is on it.
+    let on_boundary = if touching_allowed { 1e-9 } else { 1e-12 } * (hi - lo).norm();
+    let mut deep: Vec<(usize, usize, f64)> = inside
+        .par_iter()
+        .map(|&(k, e)| {
+            let d = target
+                .facets
+                .iter()
+                .map(|f| point_facet_distance(&points[k], f, &target.x))
+                .fold(f64::INFINITY, f64::min);
+            (k, e, d)
+        })
+        .collect();
+    if touching_allowed {
+        deep.retain(|&(_, _, d)| d > on_boundary);
+    }
+    // The worst offender: the point deepest inside (farthest from the boundary).
+    let &(k, e, depth) = deep.iter().reduce(|a, b| if b.2 > a.2 { b } else { a })?;
+    let where_ = if depth <= on_boundary {
+        "lies on the boundary (distance 0)".to_string()
+    } else {
+        format!("is {depth:.3e} m inside")
+    };
+    Some(SimError::Overlap {
+        a: names.0.clone(),
+        b: names.1.clone(),
+        detail: format!(
+            "{} point(s) of `{}` lie inside{} `{}`; the deepest, point {k} at {:?}, {where_} (element {e})",
+            deep.len(),
+            names.0,
+            if touching_allowed { "" } else { " or on" },
+            names.1,
+            points[k].as_slice(),
+        ),
+    })
+}
+
+/// Augury scenes: no FEM body may start with a boundary vertex inside another (touching is
+/// allowed).
+fn check_augury_overlaps<const D: usize>(fem: &[FemBody<D>]) -> Result<(), SimError> {
+    for (i, a) in fem.iter().enumerate() {
+        let points: Vec<SVector<f64, D>> = a.boundary.vertices().iter().map(|&v| a.x[v]).collect();
+        for (j, b) in fem.iter().enumerate() {
+            if i == j {
+                continue;
+            }
+            if let Some(e) = points_inside(&points, b, &(a.name.clone(), b.name.clone()), true) {
+                return Err(e);
+            }
+        }
+    }
+    Ok(())
+}
+
 /// Distance from `p` to a boundary facet (an edge in 2D, a triangle in 3D).
 pub(crate) fn point_facet_distance<const D: usize>(
     p: &SVector<f64, D>,
@@ -756,8 +819,19 @@ pub fn inside_elements<const D: usize>(
             (lo, hi)
         })
         .collect();
-    let size = boxes.iter().map(|(l, h)| (h - l).amax()).sum::<f64>() / boxes.len() as f64;
-    let cell = if size > 0.0 { size } else { 1.0 };
+    // Cell size: the median element extent (an outlier — a stretched element of a corrupted
+    // mesh — must not make the table coarse, nor cover billions of cells).
+    let mut extents: Vec<f64> = boxes.iter().map(|(l, h)| (h - l).amax()).collect();
+    let mid = extents.len() / 2;
+    let size = *extents.select_nth_unstable_by(mid, f64::total_cmp).1;
+    let cell = if size > 0.0 && size.is_finite() {
+        size
+    } else {
+        1.0
+    };
+    // Elements spanning more cells than this are tested against every point instead.
+    const MAX_CELLS_PER_ELEMENT: usize = 4096;
+    let mut big = Vec::new();
     // Only elements that reach the points' bounding box can hold one (bodies apart or barely
     // touching — the usual case when this runs every step — skip the table almost entirely).
     let (plo, phi) = points
@@ -777,7 +851,14 @@ pub fn inside_elements<const D: usize>(
         }
         let a: [i64; D] = std::array::from_fn(|k| (lo[k] / cell).floor() as i64);
         let b: [i64; D] = std::array::from_fn(|k| (hi[k] / cell).floor() as i64);
-        let n: usize = (0..D).map(|k| (b[k] - a[k] + 1) as usize).product();
+        let n = (0..D).try_fold(1usize, |n, k| {
+            let span = usize::try_from(b[k].checked_sub(a[k])?.checked_add(1)?).ok()?;
+            n.checked_mul(span)
+        });
+        let Some(n) = n.filter(|&n| n <= MAX_CELLS_PER_ELEMENT) else {
+            big.push(e);
+            continue;
+        };
         for flat in 0..n {
             let mut rem = flat;
             let key: [i64; D] = std::array::from_fn(|k| {
@@ -792,15 +873,14 @@ pub fn inside_elements<const D: usize>(
     let mut out = Vec::new();
     for (p, x0) in points.iter().enumerate() {
         let key: [i64; D] = std::array::from_fn(|k| (x0[k] / cell).floor() as i64);
-        if let Some(list) = table.get(&key) {
-            for &e in list {
-                let (lo, hi) = &boxes[e];
-                if (0..D).all(|k| x0[k] >= lo[k] && x0[k] <= hi[k])
-                    && inside_simplex(x0, &cells[e][..D + 1], x)
-                {
-                    out.push((p, e));
-                    break;
-                }
+        let hashed = table.get(&key).map_or(&[][..], Vec::as_slice);
+        for &e in hashed.iter().chain(&big) {
+            let (lo, hi) = &boxes[e];
+            if (0..D).all(|k| x0[k] >= lo[k] && x0[k] <= hi[k])
+                && inside_simplex(x0, &cells[e][..D + 1], x)
+            {
+                out.push((p, e));
+                break;
             }
         }
     }

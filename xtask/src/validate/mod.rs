@@ -15,6 +15,7 @@ mod charts;
 mod compact;
 mod compare;
 mod disk;
+mod fixtures;
 mod hertz;
 mod refinement;
 mod report;
@@ -496,6 +497,8 @@ impl Ctx {
         let opts = RunOptions {
             no_frames: true,
             pictures: self.pictures_for(label),
+            // A validation run replaces the same run's outputs from an earlier `validate`.
+            overwrite: true,
             ..Default::default()
         };
         let mut probes = Vec::new();
@@ -529,6 +532,8 @@ impl Ctx {
         let opts = RunOptions {
             no_frames: true,
             pictures: self.pictures_for(label),
+            // A validation run replaces the same run's outputs from an earlier `validate`.
+            overwrite: true,
             ..Default::default()
         };
         let r = match scene.spec.dimension {
@@ -632,6 +637,13 @@ const EXPERIMENTS: &[Experiment] = &[
         title: "Stability maps: time step against impact speed",
         run: stability::run,
         quick_s: 7.0,
+    },
+    Experiment {
+        name: "fixtures",
+        section: "shipped scenes",
+        title: "Every fixtures/scenes/*.json runs to completion as committed",
+        run: fixtures::run,
+        quick_s: 45.0,
     },
 ];
 

@@ -1,6 +1,7 @@
 //! Scenes: JSON files (format in `docs/scenes.md`, types in [`spec`]), loaded with field paths
 //! in every error and validated before anything is built.
 
+pub mod size;
 pub mod spec;
 
 use std::path::{Path, PathBuf};
@@ -19,13 +20,37 @@ pub struct Scene {
     pub base_dir: PathBuf,
     /// Name (the `name` field or the file stem).
     pub name: String,
+    /// How large the scene may be ([`size::check`], applied by `World::build`).
+    pub limits: size::Limits,
 }
 
-/// Read, parse and validate a scene file.
+/// The largest scene file [`load`] reads (64 MiB; scenes are a few kB, a long vertex list a
+/// few MB).
+pub const MAX_SCENE_BYTES: u64 = 64 << 20;
+
+/// Read, parse and validate a scene file (a regular file of at most [`MAX_SCENE_BYTES`]).
 pub fn load(path: &Path) -> Result<Scene, SimError> {
-    let text = std::fs::read_to_string(path).map_err(|source| SimError::Io {
-        path: path.to_path_buf(),
-        source,
+    let bytes =
+        femp_fem::mesh::gmsh::read_regular_file(path, MAX_SCENE_BYTES).map_err(|e| match e {
+            femp_fem::FemError::Io { path, source } => SimError::Io { path, source },
+            femp_fem::FemError::MeshFile { message, .. } => SimError::SceneFormat {
+                file: path.display().to_string(),
+                field: "(root)".into(),
+                message,
+            },
+            other => SimError::SceneFormat {
+                file: path.display().to_string(),
+                field: "(root)".into(),
+                message: other.to_string(),
+            },
+        })?;
+    let text = String::from_utf8(bytes).map_err(|e| SimError::SceneFormat {
+        file: path.display().to_string(),
+        field: "(root)".into(),
+        message: format!(
+            "not UTF-8 text (invalid byte at offset {})",
+            e.utf8_error().valid_up_to()
+        ),
     })?;
     let stem = path
         .file_stem()
@@ -42,8 +67,8 @@ pub fn parse(
     base_dir: PathBuf,
     default_name: &str,
 ) -> Result<Scene, SimError> {
-    let de = &mut serde_json::Deserializer::from_str(text);
-    let spec: SceneSpec = serde_path_to_error::deserialize(de).map_err(|e| {
+    let mut de = serde_json::Deserializer::from_str(text);
+    let spec: SceneSpec = serde_path_to_error::deserialize(&mut de).map_err(|e| {
         let mut field = e.path().to_string();
         let mut message = e.into_inner().to_string();
         // A body's own deserialiser reports the path inside the body as `\u{1}path\u{1}rest`.
@@ -61,6 +86,12 @@ pub fn parse(
             message,
         }
     })?;
+    // Only whitespace may follow the scene object.
+    de.end().map_err(|e| SimError::SceneFormat {
+        file: file.to_string(),
+        field: "(root)".into(),
+        message: format!("text after the scene object ({e})"),
+    })?;
     validate(&spec)?;
     let name = spec
         .name
@@ -70,6 +101,7 @@ pub fn parse(
         spec,
         base_dir,
         name,
+        limits: size::Limits::default(),
     })
 }
 
@@ -135,10 +167,7 @@ fn transform(field: &str, t: &TransformSpec, d: usize) -> Result<(), SimError> {
                 "2D rotations are about z; remove `axis`",
             ));
         }
-        vec_len(&format!("{field}.axis"), a, 3)?;
-        if a.iter().all(|x| *x == 0.0) {
-            return Err(invalid(format!("{field}.axis"), "must be non-zero"));
-        }
+        direction(&format!("{field}.axis"), a, 3)?;
     }
     if let Some(a) = &t.about {
         vec_len(&format!("{field}.about"), a, d)?;
@@ -214,6 +243,106 @@ fn box_corners(field: &str, min: &[f64], max: &[f64], d: usize) -> Result<(), Si
     Ok(())
 }
 
+/// The most CG iterations a Newton direction may take (`solver.pcg_max_iterations`): one CG
+/// solve is not interruptible, so its length is bounded here.
+pub const MAX_PCG_ITERATIONS: usize = 100_000;
+
+/// The most augury iterations per step (`augury.iterations`; the paper uses 1): a step is not
+/// interruptible, so its length is bounded here.
+pub const MAX_AUGURY_ITERATIONS: usize = 1000;
+
+/// A direction given as a vector (a plane's normal, a rotation axis): finite, and long enough
+/// that normalising it is exact (a denormal or huge vector would normalise to NaN or 0).
+fn direction(field: &str, v: &[f64], d: usize) -> Result<(), SimError> {
+    vec_len(field, v, d)?;
+    let sq: f64 = v.iter().map(|x| x * x).sum();
+    if !sq.is_normal() {
+        return Err(invalid(
+            field,
+            format!(
+                "{v:?} cannot be normalised (its length is {}); give a direction such as a unit vector",
+                sq.sqrt()
+            ),
+        ));
+    }
+    Ok(())
+}
+
+/// The longest body name.
+pub const MAX_NAME_LEN: usize = 64;
+
+/// Body names become file names (`NAME.pvd`, `frames/NAME_000001.vtu`), so they are restricted
+/// to what is safe on every file system: 1–[`MAX_NAME_LEN`] ASCII letters, digits, `_`, `-`
+/// and `.`, not starting with `.` or `-`. Two names may not differ only in case (they would
+/// collide on case-insensitive file systems), and `particles` is the MPM output's.
+fn body_name(field: &str, name: &str, fem: bool, taken: &[&str]) -> Result<(), SimError> {
+    if name.is_empty() {
+        return Err(invalid(field, "must not be empty"));
+    }
+    if name.len() > MAX_NAME_LEN {
+        return Err(invalid(
+            field,
+            format!("`{name}` is longer than {MAX_NAME_LEN} characters"),
+        ));
+    }
+    if let Some(c) = name
+        .chars()
+        .find(|c| !(c.is_ascii_alphanumeric() || matches!(c, '_' | '-' | '.')))
+    {
+        return Err(invalid(
+            field,
+            format!(
+                "`{name}` contains {c:?}: body names become file names, so they may only use \
+                 ASCII letters, digits, `_`, `-` and `.`"
+            ),
+        ));
+    }
+    if name.starts_with(['.', '-']) {
+        return Err(invalid(
+            field,
+            format!("`{name}` must not start with `.` or `-` (it becomes a file name)"),
+        ));
+    }
+    if let Some(other) = taken.iter().find(|t| t.eq_ignore_ascii_case(name)) {
+        return Err(invalid(
+            field,
+            if *other == name {
+                format!("`{name}` is used by another body")
+            } else {
+                format!(
+                    "`{name}` and `{other}` differ only in case; their output files would \
+                     collide on case-insensitive file systems"
+                )
+            },
+        ));
+    }
+    if fem && name.eq_ignore_ascii_case("particles") {
+        return Err(invalid(
+            field,
+            "`particles` names the MPM output (particles.pvd); choose another name for a FEM body",
+        ));
+    }
+    Ok(())
+}
+
+/// The thinnest extent of an MPM shape before placement (`None` for mesh files, known only
+/// once read): the grid must be at least this fine to resolve the body.
+fn thinnest(shape: &ShapeSpec) -> Option<f64> {
+    match shape {
+        ShapeSpec::Box { min, max, .. } => Some(
+            min.iter()
+                .zip(max)
+                .map(|(a, b)| b - a)
+                .fold(f64::INFINITY, f64::min),
+        ),
+        ShapeSpec::Disk { radius, .. } => Some(2.0 * radius),
+        ShapeSpec::Ring { r_in, r_out, .. } | ShapeSpec::SemicircularRing { r_in, r_out, .. } => {
+            Some(r_out - r_in)
+        }
+        ShapeSpec::Mesh { .. } => None,
+    }
+}
+
 /// Check every field of a parsed scene (ranges, lengths, names, consistency).
 pub fn validate(s: &SceneSpec) -> Result<(), SimError> {
     let d = s.dimension;
@@ -247,8 +376,14 @@ pub fn validate(s: &SceneSpec) -> Result<(), SimError> {
             format!("{} must be in (0, 1)", s.solver.pcg_rtol),
         ));
     }
-    if s.solver.pcg_max_iterations == 0 {
-        return Err(invalid("solver.pcg_max_iterations", "must be at least 1"));
+    if !(1..=MAX_PCG_ITERATIONS).contains(&s.solver.pcg_max_iterations) {
+        return Err(invalid(
+            "solver.pcg_max_iterations",
+            format!(
+                "{} must be from 1 to {MAX_PCG_ITERATIONS}",
+                s.solver.pcg_max_iterations
+            ),
+        ));
     }
     if let Some(max) = s.solver.pcg_rtol_max
         && !(max >= s.solver.pcg_rtol && max < 1.0)
@@ -276,15 +411,12 @@ pub fn validate(s: &SceneSpec) -> Result<(), SimError> {
     for (i, b) in s.bodies.iter().enumerate() {
         let f = format!("bodies[{i}]");
         let name = b.name();
-        if name.is_empty() {
-            return Err(invalid(format!("{f}.name"), "must not be empty"));
-        }
-        if names.contains(&name) {
-            return Err(invalid(
-                format!("{f}.name"),
-                format!("`{name}` is used by another body"),
-            ));
-        }
+        body_name(
+            &format!("{f}.name"),
+            name,
+            matches!(b, BodySpec::Fem(_)),
+            &names,
+        )?;
         names.push(name);
         match b {
             BodySpec::Mpm(MpmBody {
@@ -305,7 +437,7 @@ pub fn validate(s: &SceneSpec) -> Result<(), SimError> {
                 }
                 if let Some(ppc) = particles_per_cell {
                     let k = (*ppc as f64).powf(1.0 / d as f64).round() as usize;
-                    if *ppc == 0 || k.pow(d as u32) != *ppc {
+                    if *ppc == 0 || k.checked_pow(d as u32) != Some(*ppc) {
                         return Err(invalid(
                             format!("{f}.particles_per_cell"),
                             format!(
@@ -499,6 +631,23 @@ pub fn validate(s: &SceneSpec) -> Result<(), SimError> {
             ));
         };
         positive("mpm.grid_spacing", m.grid_spacing)?;
+        // Every MPM body at least one grid cell thick (coarser, it is a handful of particles
+        // that no grid resolves).
+        for (i, b) in s.bodies.iter().enumerate() {
+            if let BodySpec::Mpm(body) = b
+                && let Some(t) = thinnest(&body.shape)
+                && t < m.grid_spacing
+            {
+                return Err(invalid(
+                    "mpm.grid_spacing",
+                    format!(
+                        "{} is coarser than body `{}` (bodies[{i}]) is thick ({t}): the grid \
+                         must resolve every MPM body with at least one cell across",
+                        m.grid_spacing, body.name
+                    ),
+                ));
+            }
+        }
         if !(0.0..=1.0).contains(&m.flip_ratio) {
             return Err(invalid(
                 "mpm.flip_ratio",
@@ -573,10 +722,7 @@ pub fn validate(s: &SceneSpec) -> Result<(), SimError> {
         match &b.shape {
             BoundaryShape::HalfPlane { point, normal } => {
                 vec_len(&format!("{bf}.shape.point"), point, d)?;
-                vec_len(&format!("{bf}.shape.normal"), normal, d)?;
-                if normal.iter().all(|x| *x == 0.0) {
-                    return Err(invalid(format!("{bf}.shape.normal"), "must be non-zero"));
-                }
+                direction(&format!("{bf}.shape.normal"), normal, d)?;
             }
             BoundaryShape::Cosine {
                 wavelength,
@@ -650,6 +796,12 @@ fn augury(s: &SceneSpec) -> Result<(), SimError> {
             }
             if let Some(t) = a.tau {
                 positive("augury.tau", t)?;
+            }
+            if a.iterations > MAX_AUGURY_ITERATIONS {
+                return Err(invalid(
+                    "augury.iterations",
+                    format!("{} is more than {MAX_AUGURY_ITERATIONS}", a.iterations),
+                ));
             }
             if a.iterations == 0 && a.model != AuguryModelSpec::Sticky {
                 return Err(invalid(

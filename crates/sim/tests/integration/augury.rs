@@ -30,8 +30,7 @@ fn quiet(max_steps: Option<usize>) -> RunOptions {
         progress: false,
         max_steps,
         no_frames: true,
-        interrupt: None,
-        pictures: None,
+        ..Default::default()
     }
 }
 

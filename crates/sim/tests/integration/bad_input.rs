@@ -146,7 +146,25 @@ fn non_physical_values_are_named() {
 
     let mut v = base();
     v["solver"] = json!({ "linear": "pcg", "pcg_max_iterations": 0 });
-    expect_error(&v, &["solver.pcg_max_iterations", "must be at least 1"]);
+    expect_error(
+        &v,
+        &["solver.pcg_max_iterations", "must be from 1 to 100000"],
+    );
+    // One CG solve cannot be interrupted: its length is bounded.
+    v["solver"] = json!({ "linear": "pcg", "pcg_max_iterations": 100_001 });
+    expect_error(
+        &v,
+        &["solver.pcg_max_iterations", "must be from 1 to 100000"],
+    );
+    let mut v: Value = serde_json::from_str(
+        &std::fs::read_to_string(
+            Path::new(env!("CARGO_MANIFEST_DIR")).join("../../fixtures/scenes/augury_blocks.json"),
+        )
+        .unwrap(),
+    )
+    .unwrap();
+    v["augury"]["iterations"] = json!(1001);
+    expect_error(&v, &["augury.iterations", "more than 1000"]);
 
     let mut v = base();
     v["solver"] = json!({ "linear": "pcg", "pcg_rtol": 1e-6, "pcg_rtol_max": 1e-8 });
@@ -300,10 +318,10 @@ fn a_particle_at_distance_zero_from_a_fem_boundary_is_rejected() {
 
 #[test]
 fn errors_are_values_not_panics_for_every_variant() {
-    // A shape that holds no particle at this resolution.
+    // A shape thinner than a grid cell (it would hold a handful of particles, or none).
     let mut v = base();
     v["bodies"][0]["shape"] = json!({ "disk": { "center": [0, 0.5], "radius": 1e-4 } });
-    let msg = expect_error(&v, &["bodies[0].shape", "no particle"]);
+    let msg = expect_error(&v, &["mpm.grid_spacing", "body `block` (bodies[0])"]);
     assert!(!msg.is_empty());
     // The error type is matchable by callers.
     let mut v = base();
@@ -313,4 +331,249 @@ fn errors_are_values_not_panics_for_every_variant() {
         World::<2>::build(s),
         Err(SimError::Overlap { ref a, ref b, .. }) if a == "block" && b == "plate"
     ));
+}
+
+#[test]
+fn text_after_the_scene_object_is_an_error() {
+    let text = format!(
+        "{}\n}} trailing",
+        serde_json::to_string_pretty(&base()).unwrap()
+    );
+    let e = scene::parse(&text, "t.json", ".".into(), "t").unwrap_err();
+    assert!(
+        matches!(&e, SimError::SceneFormat { field, .. } if field == "(root)"),
+        "{e}"
+    );
+    assert!(e.to_string().contains("text after the scene object"), "{e}");
+    // Whitespace after it is fine.
+    let text = format!("{}\n\n  \t\n", serde_json::to_string(&base()).unwrap());
+    assert!(scene::parse(&text, "t.json", ".".into(), "t").is_ok());
+}
+
+#[test]
+fn body_names_must_be_safe_file_names() {
+    // Names become `NAME.pvd` and `frames/NAME_000001.vtu`: nothing may leave the output
+    // directory, collide with the MPM output or with another body on a case-insensitive disk.
+    for (name, needle) in [
+        ("../x", "contains '/'"),
+        ("/abs", "contains '/'"),
+        ("a\\b", "contains '\\\\'"),
+        ("..", "must not start with `.`"),
+        (".hidden", "must not start with `.`"),
+        ("-rf", "must not start with `.` or `-`"),
+        ("plate one", "contains ' '"),
+        ("plätte", "contains 'ä'"),
+        ("", "must not be empty"),
+        ("particles", "`particles` names the MPM output"),
+        ("Particles", "`particles` names the MPM output"),
+        ("BLOCK", "`BLOCK` and `block` differ only in case"),
+    ] {
+        let mut v = base();
+        v["bodies"][1]["name"] = json!(name);
+        expect_error(&v, &["bodies[1].name", needle]);
+    }
+    let mut v = base();
+    v["bodies"][1]["name"] = json!("x".repeat(65));
+    expect_error(&v, &["bodies[1].name", "longer than 64"]);
+    // What is allowed.
+    let mut v = base();
+    v["bodies"][1]["name"] = json!("Plate_2-b.v1");
+    assert_eq!(error_of(&v, Path::new(".")), None);
+}
+
+#[test]
+fn directions_that_cannot_be_normalised_are_rejected() {
+    for normal in [
+        json!([0.0, 0.0]),
+        json!([5e-324, 0.0]),
+        json!([1e-170, 1e-170]),
+    ] {
+        let mut v = base();
+        v["boundaries"] = json!([{ "shape": { "half_plane": { "point": [0, -1], "normal": normal } },
+                                   "condition": "slip" }]);
+        expect_error(&v, &["boundaries[0].shape.normal", "cannot be normalised"]);
+    }
+    let mut v = base();
+    v["boundaries"] = json!([{ "shape": { "half_plane": { "point": [0, -1], "normal": [1e-150, 1.0] } },
+                               "condition": "slip" }]);
+    assert_eq!(error_of(&v, Path::new(".")), None);
+}
+
+#[test]
+fn a_grid_coarser_than_a_body_is_rejected() {
+    // A 0.4 × 0.2 m block on a 1e6 m grid was "valid" with 1 particle.
+    let mut v = base();
+    v["mpm"]["grid_spacing"] = json!(1e6);
+    expect_error(
+        &v,
+        &["mpm.grid_spacing", "body `block` (bodies[0]) is thick (0.2"],
+    );
+    // One cell across is enough.
+    let mut v = base();
+    v["mpm"]["grid_spacing"] = json!(0.2);
+    assert_eq!(error_of(&v, Path::new(".")), None);
+}
+
+#[test]
+fn scenes_too_large_for_the_machine_are_refused_before_anything_is_allocated() {
+    // 10¹⁵ particles: refused by the estimate (this test would run out of memory otherwise).
+    let mut v = base();
+    v["mpm"]["grid_spacing"] = json!(1e-8);
+    let msg = expect_error(
+        &v,
+        &[
+            "mpm.grid_spacing",
+            "body `block` (bodies[0])",
+            "of memory, more than the limit",
+            "--memory-limit",
+        ],
+    );
+    assert!(msg.contains("particles on"), "{msg}");
+    // Absurd FEM resolutions, named by their field.
+    let mut v = base();
+    v["bodies"][1]["mesh"]["rectangle"]["cells"] = json!([1_000_000_000u64, 1_000_000_000u64]);
+    expect_error(&v, &["bodies[1].mesh.rectangle.cells", "memory"]);
+    let mut v = base();
+    v["bodies"][1]["mesh"]["rectangle"]["cells"] = json!([u64::MAX, u64::MAX]);
+    expect_error(&v, &["bodies[1].mesh.rectangle.cells"]);
+    // Particles per cell: a perfect square near the integer limit.
+    let mut v = base();
+    v["bodies"][0]["particles_per_cell"] = json!(4_294_967_296u64 * 4_294_967_295u64);
+    expect_error(&v, &["bodies[0].particles_per_cell"]);
+    // 10¹⁸ steps.
+    let mut v = base();
+    v["time"]["duration"] = json!(1e16);
+    expect_error(
+        &v,
+        &["time.dt", "steps, more than the limit", "--step-limit"],
+    );
+    // The limits are the scene's own: raised, the same scene passes the size check.
+    let mut v = base();
+    v["time"]["duration"] = json!(1e16);
+    let mut s = scene::parse(&v.to_string(), "x.json", ".".into(), "x").unwrap();
+    s.limits.steps = 1e20;
+    let e = scene::size::estimate(&s).unwrap();
+    assert!(scene::size::check(&e, &s.limits).is_ok());
+}
+
+#[test]
+fn the_size_estimate_matches_what_is_built() {
+    // Particles (box sampling and generated meshes are counted exactly; round shapes to a few
+    // per cent), FEM vertices and elements exactly, for every fixture scene.
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../fixtures/scenes");
+    let mut checked = 0;
+    for entry in std::fs::read_dir(&dir).unwrap() {
+        let path = entry.unwrap().path();
+        if path.extension().is_none_or(|e| e != "json") {
+            continue;
+        }
+        let s = scene::load(&path).unwrap();
+        let e = scene::size::estimate(&s).unwrap();
+        let (particles, vertices, elements) = match s.spec.dimension {
+            2 => {
+                let w = World::<2>::build(s).unwrap();
+                let p = w.mpm.as_ref().map_or(0, |m| m.x.len());
+                (
+                    p,
+                    w.fem.iter().map(|b| b.x.len()).sum::<usize>(),
+                    w.fem.iter().map(|b| b.mesh.num_cells()).sum::<usize>(),
+                )
+            }
+            _ => {
+                let w = World::<3>::build(s).unwrap();
+                let p = w.mpm.as_ref().map_or(0, |m| m.x.len());
+                (
+                    p,
+                    w.fem.iter().map(|b| b.x.len()).sum::<usize>(),
+                    w.fem.iter().map(|b| b.mesh.num_cells()).sum::<usize>(),
+                )
+            }
+        };
+        let name = path.display();
+        assert!(
+            (e.particles - particles as f64).abs() <= 0.03 * particles as f64,
+            "{name}: {} particles estimated, {particles} built",
+            e.particles
+        );
+        assert_eq!(e.fem_vertices, vertices as f64, "{name}");
+        assert_eq!(e.fem_elements, elements as f64, "{name}");
+        assert!(e.memory_bytes > 0.0 && e.frame_bytes > 0.0, "{name}");
+        checked += 1;
+    }
+    assert!(checked >= 10, "{checked} scenes");
+}
+
+#[test]
+fn meshes_are_read_from_regular_files_only() {
+    let dir = tempfile::tempdir().unwrap();
+    // A directory, a device that never ends, and a FIFO nobody writes to (reading it would
+    // block forever).
+    let fifo = dir.path().join("fifo.msh");
+    let made = std::process::Command::new("mkfifo").arg(&fifo).status();
+    let mut paths = vec![dir.path().display().to_string(), "/dev/zero".to_string()];
+    if made.is_ok_and(|s| s.success()) {
+        paths.push(fifo.display().to_string());
+    }
+    for p in &paths {
+        let mut v = base();
+        v["bodies"][1]["mesh"] = json!({ "file": { "path": p } });
+        let msg = error_of(&v, dir.path()).unwrap();
+        assert!(
+            msg.contains("bodies[1].mesh") && msg.contains("not a regular file"),
+            "{p}: {msg}"
+        );
+        let mut v = base();
+        v["bodies"][0]["shape"] = json!({ "mesh": { "file": p } });
+        let msg = error_of(&v, dir.path()).unwrap();
+        assert!(msg.contains("not a regular file"), "{p}: {msg}");
+    }
+    assert!(paths.len() == 3, "mkfifo must exist on the test machine");
+    // Scenes too.
+    for p in &paths {
+        let e = scene::load(Path::new(p)).unwrap_err();
+        assert!(e.to_string().contains("not a regular file"), "{p}: {e}");
+    }
+}
+
+#[test]
+fn augury_bodies_that_start_overlapping_are_rejected() {
+    let p = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../fixtures/scenes/augury_blocks.json");
+    let mut v: Value = serde_json::from_str(&std::fs::read_to_string(p).unwrap()).unwrap();
+    // Block b moved 0.5 m into block a.
+    v["bodies"][1]["mesh"]["rectangle"]["min"] = json!([-1.0, 0.0]);
+    v["bodies"][1]["mesh"]["rectangle"]["max"] = json!([0.0, 1.0]);
+    expect_error(&v, &["start overlapping", "`a`", "`b`", "m inside"]);
+    // Touching is how augury scenes start (a block resting on a ramp).
+    v["bodies"][1]["mesh"]["rectangle"]["min"] = json!([-0.5, 0.0]);
+    v["bodies"][1]["mesh"]["rectangle"]["max"] = json!([0.5, 1.0]);
+    assert_eq!(error_of(&v, Path::new(".")), None);
+}
+
+#[test]
+fn a_stretched_element_does_not_stall_the_overlap_check() {
+    // One corner of a 10³-cell cube moved 10⁴ m out (a corrupted mesh file; still a valid
+    // mesh). Binned at the mean element size, the six stretched elements' boxes covered about
+    // 10⁹ cells each of the point-location table (minutes, and gigabytes); at the median size
+    // they are set aside and tested directly, and the check answers at once.
+    use femp_fem::mesh::generate;
+    use nalgebra::Vector3;
+    let m = generate::cuboid(Vector3::zeros(), Vector3::new(1.0, 1.0, 1.0), 10, 10, 10).unwrap();
+    let mut v = m.vertices().to_vec();
+    let corner = v.len() - 1;
+    v[corner] = Vector3::new(1e4, 1e4, 1e4);
+    let m = femp_fem::Mesh::new(v.clone(), m.cells().to_vec()).unwrap();
+    let points = vec![
+        Vector3::new(0.5, 0.5, 0.5),
+        // The centroid of the stretched tetrahedron (0.9, 0.9, 0.9), (1, 0.9, 0.9), (1, 1, 0.9),
+        // corner.
+        Vector3::new(
+            0.9 + 1.0 + 1.0 + 1e4,
+            0.9 + 0.9 + 1.0 + 1e4,
+            0.9 + 0.9 + 0.9 + 1e4,
+        ) / 4.0,
+        Vector3::new(-1.0, 0.5, 0.5),
+    ];
+    let inside = femp::world::inside_elements(&points, &m, &v);
+    let found: Vec<usize> = inside.iter().map(|&(p, _)| p).collect();
+    assert_eq!(found, vec![0, 1]);
 }

@@ -25,7 +25,8 @@ fn check_ok(path: &str) -> String {
     String::from_utf8_lossy(&out.stdout).into_owned()
 }
 
-fn scene(dir: &Path, name: &str, v: &Value) -> String {
+/// Write scene `v` as `dir/name`; its path.
+pub(crate) fn scene(dir: &Path, name: &str, v: &Value) -> String {
     let p = dir.join(name);
     std::fs::write(&p, serde_json::to_string_pretty(v).unwrap()).unwrap();
     p.display().to_string()

@@ -7,5 +7,14 @@ mod bad_input;
 mod bfemp;
 mod cli;
 mod fixtures;
+mod fuzz;
 mod pictures;
 mod sampling;
+mod trust;
+
+/// Every allocation of these tests counts against a cap: one that would take the live total
+/// past it aborts the test binary (as an out-of-memory kill would) instead of swapping the
+/// machine. The fuzz harness relies on it to show that no scene, however mutated, allocates
+/// without bound.
+#[global_allocator]
+static ALLOC: fuzz::CappedAlloc = fuzz::CappedAlloc::new(8 << 30);
