@@ -4,6 +4,7 @@ use std::path::PathBuf;
 
 use anyhow::Context;
 use clap::{Parser, Subcommand};
+use femp::render::MAX_SIDE as MAX_PICTURE_SIDE;
 
 /// Elastic MPM and FEM bodies in frictional contact: BFEMP (implicit, barrier contact) and APIC
 /// augury contact (explicit FEM), chosen by the scene's `method`.
@@ -91,8 +92,6 @@ enum Command {
         limits: LimitArgs,
     },
 }
-
-use femp::render::MAX_SIDE as MAX_PICTURE_SIDE;
 
 fn parse_size(s: &str) -> Result<(u32, u32), String> {
     let bad = || {
