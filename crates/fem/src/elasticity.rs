@@ -19,7 +19,7 @@ use rayon::prelude::*;
 
 use crate::error::check_len;
 use crate::inversion::first_det_root;
-use crate::material::{Hyperelastic, von_mises};
+use crate::material::{Hyperelastic, cauchy, von_mises};
 use crate::{Element, FemError, Mesh, chain_gradient, chain_hessian, linalg};
 
 /// One entry of a sparse matrix in coordinate form.
@@ -321,6 +321,17 @@ impl<const D: usize, M: Hyperelastic<D>> ElasticBody<D, M> {
         (0..self.elements.len())
             .into_par_iter()
             .map(|e| linalg::det(&self.deformation_gradient(e, x)))
+            .collect()
+    }
+
+    /// Cauchy stress of every element (NaN entries for an inverted one).
+    pub fn cauchy_stress(&self, x: &[SVector<f64, D>]) -> Vec<SMatrix<f64, D, D>> {
+        (0..self.elements.len())
+            .into_par_iter()
+            .map(|e| {
+                let f = self.deformation_gradient(e, x);
+                cauchy(&self.material.first_piola(&f), &f)
+            })
             .collect()
     }
 

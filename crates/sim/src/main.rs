@@ -172,6 +172,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                 interrupt: Some(interrupt),
                 overwrite,
                 metrics_in_file_only: true,
+                command: std::env::args().collect(),
                 pictures: pictures.then(|| femp::render::PictureOptions {
                     key_frames: key_frames.into(),
                     gif_frames: gif_frames.into(),

@@ -51,10 +51,17 @@ pub struct Metrics {
     pub pcg_iterations: usize,
     /// Wall-clock seconds of the step.
     pub wall_s: f64,
+    /// Per body of a BFEMP scene (scene order): the contact force on it at the end of the step,
+    /// barrier and friction (x, y, z; z = 0 in 2D). N in 3D, N/m in 2D. A fully prescribed body
+    /// feels the reaction that holds it. Empty for augury scenes.
+    pub contact_forces: Vec<[f64; 3]>,
+    /// The friction part of `contact_forces`.
+    pub friction_forces: Vec<[f64; 3]>,
 }
 
-/// CSV header matching [`Metrics::csv_row`].
-pub fn csv_header<const D: usize>() -> String {
+/// CSV header matching [`Metrics::csv_row`], with force columns for the bodies `forces_of`
+/// (`force_NAME_x`, … the contact force, then `friction_NAME_x`, … its friction part).
+pub fn csv_header<const D: usize>(forces_of: &[&str]) -> String {
     let mut h = String::from(
         "step,t,dt,kinetic_energy,elastic_energy,barrier_energy,gravity_energy,total_energy,momentum_x,momentum_y",
     );
@@ -66,6 +73,13 @@ pub fn csv_header<const D: usize>() -> String {
     h.push_str(
         ",min_distance,penetrations,newton_iterations,friction_iterations,contact_terms,backtracks,ccd_limited,exact_hessians,reused_hessians,pcg_iterations,wall_s",
     );
+    for kind in ["force", "friction"] {
+        for name in forces_of {
+            for axis in ["x", "y", "z"].iter().take(D) {
+                h.push_str(&format!(",{kind}_{name}_{axis}"));
+            }
+        }
+    }
     h
 }
 
@@ -110,6 +124,11 @@ impl Metrics {
             self.pcg_iterations,
             self.wall_s
         ));
+        for f in self.contact_forces.iter().chain(&self.friction_forces) {
+            for v in &f[..D] {
+                r.push_str(&format!(",{v:.12e}"));
+            }
+        }
         r
     }
 }

@@ -713,6 +713,44 @@ impl<'a, const D: usize> StepObjective<'a, D> {
         }
     }
 
+    /// The contact force of every pair at `x`, summed over the pair's points:
+    /// `[barrier, friction]` on the points' body (`−∂B/∂x_points`, `−∂D/∂x_points`, friction
+    /// with the operator the last solve used); the facets' body feels the opposite (both
+    /// potentials are invariant to a common translation). N in 3D, N/m in 2D.
+    pub(crate) fn pair_forces(&mut self, x: &[f64]) -> Vec<[SVector<f64, D>; 2]> {
+        self.unpack(x);
+        let mut out = Vec::with_capacity(self.pairs.len());
+        let mut derivs = Vec::new();
+        for k in 0..self.pairs.len() {
+            let mut f = [SVector::zeros(); 2];
+            if self.collect(k).is_ok() {
+                let pair = &self.pairs[k];
+                let pts = self.points(pair);
+                pair.potential.derivatives(
+                    &self.terms,
+                    &pts,
+                    &self.fem_x[pair.facets_of],
+                    &mut derivs,
+                );
+                f[0] = -derivs.iter().map(|d| d.grad[0]).sum::<SVector<f64, D>>();
+                if !self.friction[k].is_empty() {
+                    self.fill_displacements(k);
+                    let (dp, db) = &self.disp;
+                    friction::derivatives(
+                        &self.pairs[k].friction,
+                        &self.friction[k],
+                        dp,
+                        db,
+                        &mut derivs,
+                    );
+                    f[1] = -derivs.iter().map(|d| d.grad[0]).sum::<SVector<f64, D>>();
+                }
+            }
+            out.push(f);
+        }
+        out
+    }
+
     /// Smallest contact distance and number of active terms over all pairs at `x`.
     pub(crate) fn contact_summary(&mut self, x: &[f64]) -> (usize, f64) {
         self.unpack(x);

@@ -6,7 +6,7 @@ use std::io::{Seek, Write};
 use std::path::{Path, PathBuf};
 
 use femp_fem::Hyperelastic;
-use femp_fem::material::von_mises;
+use femp_fem::material::{cauchy, von_mises};
 use femp_fem::mesh::vtk::{Encoding, Field, Pvd, Vtu};
 use nalgebra::SVector;
 use serde::Serialize;
@@ -20,6 +20,18 @@ use crate::world::World;
 pub struct Summary {
     /// Scene name.
     pub scene: String,
+    /// femp's version.
+    pub femp_version: String,
+    /// The commit femp was built from (`git describe --always`; `unknown` outside a checkout;
+    /// uncommitted changes are not recorded).
+    pub commit: String,
+    /// The command line of the run (`femp run …`; empty for library runs that do not give one).
+    pub command: Vec<String>,
+    /// The scene as it was read, copied into the output directory ([`SCENE_COPY`]); `None` for
+    /// scenes built in code without their text.
+    pub scene_copy: Option<String>,
+    /// The MPM bodies' names, in the order of the `body` index of the particle frames.
+    pub mpm_bodies: Vec<String>,
     /// 2 or 3.
     pub dimension: usize,
     /// `bfemp` or `augury`.
@@ -124,6 +136,9 @@ pub struct OutputOptions {
     pub overwrite: bool,
 }
 
+/// The copy of the scene file a run writes into its directory.
+pub const SCENE_COPY: &str = "scene_copy.json";
+
 /// The lock file that keeps two runs out of one directory.
 pub const LOCK_FILE: &str = ".femp.lock";
 
@@ -187,7 +202,7 @@ fn lock(dir: &Path) -> Result<File, SimError> {
     Ok(file)
 }
 
-/// The files an earlier femp run left in `dir`: `summary.json`, `metrics.csv`, `*.pvd`,
+/// The files an earlier femp run left in `dir`: `summary.json`, `metrics.csv`, [`SCENE_COPY`], `*.pvd`,
 /// `frames/*.vtu`, `pictures/key_*.png` and `pictures/animation.gif` (and their temporaries).
 /// Nothing else in the directory is femp's.
 pub fn earlier_outputs(dir: &Path) -> Vec<PathBuf> {
@@ -208,7 +223,8 @@ pub fn earlier_outputs(dir: &Path) -> Vec<PathBuf> {
         matches!(
             n,
             "summary.json" | "summary.json.tmp" | "metrics.csv" | "metrics.csv.tmp"
-        ) || n.ends_with(".pvd")
+        ) || n.starts_with(SCENE_COPY)
+            || n.ends_with(".pvd")
             || n.ends_with(".pvd.tmp")
     });
     out.extend(list(&dir.join("frames"), &|n| {
@@ -284,7 +300,7 @@ impl Output {
         std::fs::create_dir_all(dir.join("frames")).map_err(io(dir))?;
         let mpath = dir.join("metrics.csv");
         let mut metrics = File::create(&mpath).map_err(io(&mpath))?;
-        let header = format!("{}\n", csv_header::<D>());
+        let header = format!("{}\n", csv_header::<D>(&world.force_bodies()));
         metrics.write_all(header.as_bytes()).map_err(io(&mpath))?;
         let mut pvds = Vec::new();
         if world.mpm.is_some() {
@@ -364,16 +380,23 @@ impl Output {
                 .join("frames")
                 .join(format!("particles_{k:06}.vtu"));
             let det: Vec<f64> = m.f.iter().map(femp_fem::linalg::det).collect();
-            let vm: Vec<f64> = (0..m.x.len())
-                .map(|p| {
-                    let mat = &m.bodies[m.body[p] as usize].material;
-                    von_mises(&mat.first_piola(&m.f[p]), &m.f[p])
-                })
-                .collect();
+            let (mut vm, mut stress) =
+                (Vec::with_capacity(m.x.len()), Vec::with_capacity(m.x.len()));
+            for p in 0..m.x.len() {
+                let mat = &m.bodies[m.body[p] as usize].material;
+                let piola = mat.first_piola(&m.f[p]);
+                vm.push(von_mises(&piola, &m.f[p]));
+                stress.push(cauchy(&piola, &m.f[p]));
+            }
+            let volume: Vec<f64> = m.volume.iter().zip(&det).map(|(v, j)| v * j).collect();
             Vtu::points(&m.x)
                 .with_point_field(Field::vector("velocity", &m.v))
                 .with_point_field(Field::scalar("det_F", det))
                 .with_point_field(Field::scalar("von_mises", vm))
+                .with_point_field(Field::tensor("stress", &stress))
+                .with_point_field(Field::scalar("mass", m.mass.clone()))
+                .with_point_field(Field::scalar("volume", volume))
+                .with_point_field(Field::scalar("rest_volume", m.volume.clone()))
                 .with_point_field(Field::scalar(
                     "body",
                     m.body.iter().map(|&b| b as f64).collect(),
@@ -397,6 +420,7 @@ impl Output {
                 .with_point_field(Field::vector("displacement", &disp))
                 .with_point_field(Field::vector("velocity", &b.v))
                 .with_cell_field(Field::scalar("von_mises", b.elastic.von_mises(&b.x)))
+                .with_cell_field(Field::tensor("stress", &b.elastic.cauchy_stress(&b.x)))
                 .with_cell_field(Field::scalar("det_F", b.elastic.det_f(&b.x)))
                 .write(&path, self.encoding)
                 .map_err(fem_err)?;
@@ -408,6 +432,12 @@ impl Output {
         }
         self.frames += 1;
         Ok(())
+    }
+
+    /// Copy the scene's text into the directory ([`SCENE_COPY`]), written whole.
+    pub fn scene_copy(&self, text: &str) -> Result<(), SimError> {
+        let path = self.dir.join(SCENE_COPY);
+        write_replacing(&path, text.as_bytes()).map_err(io(&path))
     }
 
     /// Write `summary.json`: to a temporary file renamed over it (readers never see half a

@@ -35,6 +35,8 @@ pub struct RunOptions {
     pub pictures: Option<PictureOptions>,
     /// Replace an earlier run's outputs in the output directory instead of refusing them.
     pub overwrite: bool,
+    /// The command line that started the run, recorded in `summary.json`.
+    pub command: Vec<String>,
     /// Keep no per-step metrics in memory ([`RunResult::metrics`] holds the initial state only;
     /// `metrics.csv` has them all) — for long runs, whose metrics would grow without bound.
     pub metrics_in_file_only: bool,
@@ -109,8 +111,24 @@ pub fn run_with<const D: usize>(
     }
     let total_steps = step_count(world.scene.spec.time.duration, world.dt);
     let total_steps = opts.max_steps.map_or(total_steps, |m| m.min(total_steps));
+    let scene_copy = match &world.scene.source {
+        Some(text) => {
+            out.scene_copy(text)?;
+            Some(crate::output::SCENE_COPY.to_string())
+        }
+        None => None,
+    };
     let mut summary = Summary {
         scene: name.clone(),
+        femp_version: env!("CARGO_PKG_VERSION").into(),
+        commit: env!("FEMP_COMMIT").into(),
+        command: opts.command.clone(),
+        scene_copy,
+        mpm_bodies: world
+            .mpm
+            .as_ref()
+            .map(|m| m.bodies.iter().map(|b| b.name.clone()).collect())
+            .unwrap_or_default(),
         dimension: D,
         status: "running".into(),
         particles: world.mpm.as_ref().map_or(0, |m| m.x.len()),
@@ -214,7 +232,17 @@ fn drive<const D: usize>(
 ) -> Result<(), SimError> {
     let name = summary.scene.clone();
     let frame_dt = world.scene.spec.time.frame_interval.unwrap_or(world.dt);
-    let m0 = world.measure();
+    let mut m0 = world.measure();
+    // The initial state's barrier forces (no step yet, so no friction).
+    let initial: Vec<[[f64; 3]; 2]> = world
+        .contact_forces()
+        .iter()
+        .map(|p| {
+            let f = std::array::from_fn(|a| if a < D { p.on_points[a] } else { 0.0 });
+            [f, [0.0; 3]]
+        })
+        .collect();
+    (m0.contact_forces, m0.friction_forces) = world.body_forces(&initial);
     out.metrics_row::<D>(&m0)?;
     summary.max_penetrations = m0.penetrations;
     all.push(m0);
@@ -264,6 +292,7 @@ fn drive<const D: usize>(
         summary.timing.measure_s += clock.elapsed().as_secs_f64();
         let clock = Instant::now();
         record(&mut m, summary, &report);
+        (m.contact_forces, m.friction_forces) = world.body_forces(&report.pair_forces);
         m.wall_s = t0.elapsed().as_secs_f64();
         out.metrics_row::<D>(&m)?;
         summary.steps = world.step;

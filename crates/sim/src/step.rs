@@ -35,6 +35,10 @@ pub struct StepReport {
     pub setup_s: f64,
     /// Seconds in the objective's parts.
     pub objective: crate::objective::ObjectiveTiming,
+    /// Per contact pair (`World::pairs` order) at the end of the step: `[barrier, friction]`
+    /// force on the pair's points (x, y, z; z = 0 in 2D), the facets' body feeling the opposite
+    /// (empty for augury).
+    pub pair_forces: Vec<[[f64; 3]; 2]>,
 }
 
 fn add_stats(acc: &mut SolveStats, s: &SolveStats) {
@@ -242,12 +246,21 @@ impl<const D: usize> World<D> {
                 break;
             }
             if j + 1 == max_fric {
+                // The last solve's friction operator stays (the forces reported with the step
+                // are those of the state it solved for).
                 report.friction_converged = false;
+                break;
             }
             prev.copy_from_slice(&x);
             obj.lag_friction(&x);
         }
         let (nterms, dmin) = obj.contact_summary(&x);
+        let pad = |v: &SVector<f64, D>| std::array::from_fn(|a| if a < D { v[a] } else { 0.0 });
+        report.pair_forces = obj
+            .pair_forces(&x)
+            .iter()
+            .map(|[b, f]| [pad(b), pad(f)])
+            .collect();
         report.contact_terms = nterms;
         report.min_distance = dmin;
         report.objective = obj.timing;

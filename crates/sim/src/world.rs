@@ -604,6 +604,39 @@ impl<const D: usize> World<D> {
         self.interrupt = flag;
     }
 
+    /// The bodies whose contact forces `metrics.csv` reports: every body of a BFEMP scene, in
+    /// scene order; none for augury (its contact acts through velocity corrections).
+    pub fn force_bodies(&self) -> Vec<&str> {
+        if self.augury.is_some() {
+            return Vec::new();
+        }
+        self.scene.spec.bodies.iter().map(BodySpec::name).collect()
+    }
+
+    /// Per body of [`World::force_bodies`]: the contact force (barrier and friction) and its
+    /// friction part, from a step's per-pair forces (`StepReport::pair_forces`): a pair's force
+    /// acts on its points' body, the opposite on its facets' body.
+    pub fn body_forces(&self, pair_forces: &[[[f64; 3]; 2]]) -> (Vec<[f64; 3]>, Vec<[f64; 3]>) {
+        let names = self.force_bodies();
+        let mut total = vec![[0.0; 3]; names.len()];
+        let mut friction = vec![[0.0; 3]; names.len()];
+        for (pair, [b, f]) in self.pairs.iter().zip(pair_forces) {
+            let (Some(i), Some(j)) = (
+                names.iter().position(|n| *n == pair.names.0),
+                names.iter().position(|n| *n == pair.names.1),
+            ) else {
+                continue;
+            };
+            for a in 0..3 {
+                total[i][a] += b[a] + f[a];
+                total[j][a] -= b[a] + f[a];
+                friction[i][a] += f[a];
+                friction[j][a] -= f[a];
+            }
+        }
+        (total, friction)
+    }
+
     /// Whether the interrupt flag is set.
     pub fn interrupted(&self) -> bool {
         self.interrupt

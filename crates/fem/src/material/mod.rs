@@ -157,14 +157,26 @@ impl<const D: usize> Hyperelastic<D> for Material {
     }
 }
 
+/// The Cauchy stress `σ = J⁻¹ P Fᵀ` (eq. 5) of a first Piola–Kirchhoff stress `P` at `F`; NaN
+/// entries where `J = det F ≤ 0` (an inverted state has no Cauchy stress).
+pub fn cauchy<const D: usize>(
+    p: &SMatrix<f64, D, D>,
+    f: &SMatrix<f64, D, D>,
+) -> SMatrix<f64, D, D> {
+    let j = crate::linalg::det(f);
+    if j <= 0.0 || !j.is_finite() {
+        return SMatrix::from_element(f64::NAN);
+    }
+    p * f.transpose() / j
+}
+
 /// Von Mises equivalent stress of the Cauchy stress `σ = J⁻¹ P Fᵀ` (eq. 5); in 2D the plane
 /// stress components only (out-of-plane stress ignored).
 pub fn von_mises<const D: usize>(p: &SMatrix<f64, D, D>, f: &SMatrix<f64, D, D>) -> f64 {
-    let j = crate::linalg::det(f);
-    if j <= 0.0 || !j.is_finite() {
+    let sigma = cauchy(p, f);
+    if sigma[(0, 0)].is_nan() {
         return f64::NAN;
     }
-    let sigma = p * f.transpose() / j;
     let tr = sigma.trace() / D as f64;
     let dev = sigma - SMatrix::<f64, D, D>::identity() * tr;
     // 3D: sqrt(3/2 s:s); 2D (plane): sqrt(σxx² − σxxσyy + σyy² + 3σxy²).

@@ -12,7 +12,7 @@ use std::fmt::Write as _;
 use std::io::Write as _;
 use std::path::{Path, PathBuf};
 
-use nalgebra::SVector;
+use nalgebra::{SMatrix, SVector};
 
 use super::Mesh;
 use crate::FemError;
@@ -64,6 +64,26 @@ impl Field {
         Self {
             name: name.to_string(),
             components: 3,
+            values,
+        }
+    }
+}
+
+impl Field {
+    /// A tensor field from `D × D` matrices, padded to 3 × 3 (9 components, row-major, as
+    /// ParaView reads tensors).
+    pub fn tensor<const D: usize>(name: &str, m: &[SMatrix<f64, D, D>]) -> Self {
+        let mut values = Vec::with_capacity(9 * m.len());
+        for t in m {
+            for r in 0..3 {
+                for c in 0..3 {
+                    values.push(if r < D && c < D { t[(r, c)] } else { 0.0 });
+                }
+            }
+        }
+        Self {
+            name: name.to_string(),
+            components: 9,
             values,
         }
     }

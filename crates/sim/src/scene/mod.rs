@@ -22,6 +22,8 @@ pub struct Scene {
     pub name: String,
     /// How large the scene may be ([`size::check`], applied by `World::build`).
     pub limits: size::Limits,
+    /// The text the scene was parsed from (a run copies it into its output directory).
+    pub source: Option<String>,
 }
 
 /// The largest scene file [`load`] reads (64 MiB; scenes are a few kB, a long vertex list a
@@ -102,6 +104,7 @@ pub fn parse(
         base_dir,
         name,
         limits: size::Limits::default(),
+        source: Some(text.to_string()),
     })
 }
 

@@ -343,3 +343,102 @@ fn slope_2d_sticks_and_slides() {
 fn slope_3d_sticks_and_slides() {
     check_slope(3);
 }
+
+/// The contact forces in `metrics.csv` are the forces that change the bodies' momenta: with
+/// backward Euler a body's momentum changes over a step by `Δt (F_contact + M g)` (the elastic
+/// forces cancel, the transfers conserve momentum), so the reported force is checked against
+/// the impulse of every step — of a 2D block sliding and sticking on a plate with friction, and
+/// of a 3D one. The friction part opposes the sliding, and the plate feels the opposite force.
+#[test]
+fn contact_forces_in_the_metrics_are_the_impulse_of_every_step() {
+    for (d, json) in [
+        (
+            2,
+            r#"{ "dimension": 2, "gravity": [0, -9.81],
+              "time": { "dt": 0.01, "duration": 0.3 },
+              "solver": { "tolerance": 1e-9, "max_friction_iterations": 50 },
+              "mpm": { "grid_spacing": 0.05 },
+              "bodies": [
+                { "kind": "mpm", "name": "block", "shape": { "box": { "min": [-0.2, 0.004], "max": [0.2, 0.204] } },
+                  "material": { "E": 1e5, "nu": 0.3, "rho": 1000 }, "velocity": [1.0, -0.5] },
+                { "kind": "fem", "name": "plate",
+                  "mesh": { "rectangle": { "min": [-2, -0.1], "max": [2, 0], "cells": [40, 1] } },
+                  "material": { "E": 1e7, "nu": 0.3, "rho": 1000 },
+                  "prescribed": [ { "vertices": "all", "motion": [] } ] } ],
+              "contact": { "dhat": 0.005, "kappa": 1e5, "friction": 0.5 } }"#,
+        ),
+        (
+            3,
+            r#"{ "dimension": 3, "gravity": [0, -9.81, 0],
+              "time": { "dt": 0.01, "duration": 0.1 },
+              "solver": { "tolerance": 1e-9, "max_friction_iterations": 50 },
+              "mpm": { "grid_spacing": 0.1 },
+              "bodies": [
+                { "kind": "mpm", "name": "block", "shape": { "box": { "min": [-0.2, 0.004, -0.2], "max": [0.2, 0.204, 0.2] } },
+                  "material": { "E": 1e5, "nu": 0.3, "rho": 1000 }, "velocity": [1.0, -0.5, 0.3] },
+                { "kind": "fem", "name": "plate",
+                  "mesh": { "cuboid": { "min": [-1, -0.1, -1], "max": [1, 0, 1], "cells": [4, 1, 4] } },
+                  "material": { "E": 1e7, "nu": 0.3, "rho": 1000 },
+                  "prescribed": [ { "vertices": "all", "motion": [] } ] } ],
+              "contact": { "dhat": 0.005, "kappa": 1e5, "friction": 0.5 } }"#,
+        ),
+    ] {
+        let r = run_scene(json);
+        let (dt, g) = (0.01, [0.0, -9.81, 0.0]);
+        // The plate is prescribed at rest: the momentum in the metrics is the block's.
+        let mass: f64 = {
+            let s = scene::parse(json, "m.json", ".".into(), "m").unwrap();
+            match d {
+                2 => femp::World::<2>::build(s)
+                    .unwrap()
+                    .mpm
+                    .unwrap()
+                    .mass
+                    .iter()
+                    .sum(),
+                _ => femp::World::<3>::build(s)
+                    .unwrap()
+                    .mpm
+                    .unwrap()
+                    .mass
+                    .iter()
+                    .sum(),
+            }
+        };
+        let mut contact_steps = 0;
+        let mut friction_seen = 0.0f64;
+        for k in 1..r.metrics.len() {
+            let (m0, m1) = (&r.metrics[k - 1], &r.metrics[k]);
+            let f = m1.contact_forces[0];
+            let fr = m1.friction_forces[0];
+            for a in 0..d {
+                let impulse = m1.momentum[a] - m0.momentum[a];
+                let expected = dt * (f[a] + mass * g[a]);
+                assert!(
+                    (impulse - expected).abs() <= 1e-6 * dt * mass * 9.81,
+                    "{d}D step {k}, axis {a}: Δp = {impulse:e}, Δt (F + Mg) = {expected:e}"
+                );
+                // Action and reaction.
+                assert_eq!(m1.contact_forces[1][a], -f[a]);
+                assert_eq!(m1.friction_forces[1][a], -fr[a]);
+            }
+            if f[1] > 0.0 {
+                contact_steps += 1;
+                // Coulomb: the friction force is at most μ times the normal force.
+                let tangential = (fr[0] * fr[0] + fr[2] * fr[2]).sqrt();
+                assert!(
+                    tangential <= 0.5 * f[1] * (1.0 + 1e-6),
+                    "{d}D step {k}: friction {fr:?} against normal {}",
+                    f[1]
+                );
+                // While the block slides, friction opposes its motion.
+                if m1.momentum[0] / mass > 0.05 {
+                    assert!(fr[0] < 0.0, "{d}D step {k}: friction {fr:?}");
+                }
+                friction_seen = friction_seen.max(tangential);
+            }
+        }
+        assert!(contact_steps >= 3, "{d}D: {contact_steps} steps in contact");
+        assert!(friction_seen > 0.1 * mass, "{d}D: friction {friction_seen}");
+    }
+}

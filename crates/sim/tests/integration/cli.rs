@@ -163,6 +163,53 @@ fn run_writes_frames_metrics_and_summary() {
         assert!(f.exists(), "{}", f.display());
     }
     assert!(out_dir.join("plate.pvd").exists());
+    // Provenance: version, commit, the command, the scene as read, the body index's names.
+    assert_eq!(summary["femp_version"], env!("CARGO_PKG_VERSION"));
+    assert!(!summary["commit"].as_str().unwrap().is_empty());
+    let command: Vec<&str> = summary["command"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|v| v.as_str().unwrap())
+        .collect();
+    assert_eq!(&command[1..3], &["run", p.as_str()]);
+    assert_eq!(summary["scene_copy"], "scene_copy.json");
+    assert_eq!(
+        std::fs::read_to_string(out_dir.join("scene_copy.json")).unwrap(),
+        std::fs::read_to_string(&p).unwrap()
+    );
+    assert_eq!(summary["mpm_bodies"], json!(["block"]));
+    // Per-particle mass, volumes and Cauchy stress; per-cell stress of the plate.
+    let last =
+        femp_fem::mesh::vtk::Vtu::read(&out_dir.join("frames/particles_000005.vtu")).unwrap();
+    let field = |name: &str| {
+        last.field(name)
+            .unwrap_or_else(|| panic!("no {name}"))
+            .clone()
+    };
+    let (mass, vol, rest, det, vm, stress) = (
+        field("mass"),
+        field("volume"),
+        field("rest_volume"),
+        field("det_F"),
+        field("von_mises"),
+        field("stress"),
+    );
+    // 0.4 × 0.2 m of 1000 kg/m².
+    assert!((mass.values.iter().sum::<f64>() - 80.0).abs() < 1e-9);
+    assert_eq!(stress.components, 9);
+    for q in 0..mass.values.len() {
+        assert!((vol.values[q] - rest.values[q] * det.values[q]).abs() < 1e-15);
+        let s = &stress.values[9 * q..9 * q + 9];
+        // Plane: symmetric, no out-of-plane entries; its von Mises is the frame's.
+        assert!((s[1] - s[3]).abs() <= 1e-9 * s[0].abs().max(1.0));
+        assert!(s[2] == 0.0 && s[5] == 0.0 && s[8] == 0.0);
+        let (sx, sy, sxy) = (s[0], s[4], s[1]);
+        let von_mises = (sx * sx - sx * sy + sy * sy + 3.0 * sxy * sxy).sqrt();
+        assert!((von_mises - vm.values[q]).abs() <= 1e-9 * vm.values[q].max(1.0));
+    }
+    let plate = femp_fem::mesh::vtk::Vtu::read(&out_dir.join("frames/plate_000005.vtu")).unwrap();
+    assert_eq!(plate.field("stress").unwrap().components, 9);
 }
 
 #[test]
