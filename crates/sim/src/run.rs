@@ -319,10 +319,11 @@ fn drive<const D: usize>(
         } else if opts.progress
             && (last_line.elapsed().as_secs_f64() > 10.0 || world.step == total_steps)
         {
+            let elapsed = start.elapsed().as_secs_f64();
+            let left = eta(elapsed, world.step, total_steps);
             note(format_args!(
-                "[{name}] step {}/{total_steps}, {msg}, {:.1} s",
+                "[{name}] step {}/{total_steps}, {msg}, {elapsed:.1} s{left}",
                 world.step,
-                start.elapsed().as_secs_f64()
             ));
             last_line = Instant::now();
         }
@@ -341,6 +342,22 @@ fn drive<const D: usize>(
         b.finish();
     }
     Ok(())
+}
+
+/// `, about 3 min left` from the mean step time so far (empty when done or nothing is known).
+fn eta(elapsed: f64, done: usize, total: usize) -> String {
+    if done == 0 || done >= total {
+        return String::new();
+    }
+    let left = elapsed / done as f64 * (total - done) as f64;
+    let human = if left < 120.0 {
+        format!("{left:.0} s")
+    } else if left < 7200.0 {
+        format!("{:.0} min", left / 60.0)
+    } else {
+        format!("{:.1} h", left / 3600.0)
+    };
+    format!(", about {human} left")
 }
 
 /// Copy a step's solver report into its metrics row and add it to the summary's totals.
@@ -378,4 +395,18 @@ fn record(m: &mut Metrics, summary: &mut Summary, report: &StepReport) {
     tm.pcg_s += s.pcg_s;
     tm.line_search_s += s.line_search_s;
     tm.objective.add(&report.objective);
+}
+
+#[cfg(test)]
+mod tests {
+    use super::eta;
+
+    #[test]
+    fn eta_is_the_mean_step_time_times_the_steps_left() {
+        assert_eq!(eta(10.0, 5, 20), ", about 30 s left");
+        assert_eq!(eta(60.0, 1, 11), ", about 10 min left");
+        assert_eq!(eta(3600.0, 1, 4), ", about 3.0 h left");
+        assert_eq!(eta(1.0, 0, 5), "");
+        assert_eq!(eta(1.0, 5, 5), "");
+    }
 }
