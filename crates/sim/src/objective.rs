@@ -716,34 +716,59 @@ impl<'a, const D: usize> StepObjective<'a, D> {
     /// The contact force of every pair at `x`, summed over the pair's points:
     /// `[barrier, friction]` on the points' body (`−∂B/∂x_points`, `−∂D/∂x_points`, friction
     /// with the operator the last solve used); the facets' body feels the opposite (both
-    /// potentials are invariant to a common translation). N in 3D, N/m in 2D.
-    pub(crate) fn pair_forces(&mut self, x: &[f64]) -> Vec<[SVector<f64, D>; 2]> {
+    /// potentials are invariant to a common translation). N in 3D, N/m in 2D. The force on
+    /// every particle and FEM vertex (barrier and friction, all pairs) is added into
+    /// `on_particles` and `on_vertices[body]`.
+    pub(crate) fn pair_forces(
+        &mut self,
+        x: &[f64],
+        on_particles: &mut [SVector<f64, D>],
+        on_vertices: &mut [Vec<SVector<f64, D>>],
+    ) -> Vec<[SVector<f64, D>; 2]> {
         self.unpack(x);
         let mut out = Vec::with_capacity(self.pairs.len());
         let mut derivs = Vec::new();
         for k in 0..self.pairs.len() {
             let mut f = [SVector::zeros(); 2];
             if self.collect(k).is_ok() {
-                let pair = &self.pairs[k];
-                let pts = self.points(pair);
-                pair.potential.derivatives(
-                    &self.terms,
-                    &pts,
-                    &self.fem_x[pair.facets_of],
-                    &mut derivs,
-                );
-                f[0] = -derivs.iter().map(|d| d.grad[0]).sum::<SVector<f64, D>>();
-                if !self.friction[k].is_empty() {
-                    self.fill_displacements(k);
-                    let (dp, db) = &self.disp;
-                    friction::derivatives(
-                        &self.pairs[k].friction,
-                        &self.friction[k],
-                        dp,
-                        db,
-                        &mut derivs,
-                    );
-                    f[1] = -derivs.iter().map(|d| d.grad[0]).sum::<SVector<f64, D>>();
+                for part in 0..2 {
+                    let pair = &self.pairs[k];
+                    if part == 0 {
+                        let pts = self.points(pair);
+                        pair.potential.derivatives(
+                            &self.terms,
+                            &pts,
+                            &self.fem_x[pair.facets_of],
+                            &mut derivs,
+                        );
+                    } else if self.friction[k].is_empty() {
+                        continue;
+                    } else {
+                        self.fill_displacements(k);
+                        let (dp, db) = &self.disp;
+                        friction::derivatives(
+                            &pair.friction,
+                            &self.friction[k],
+                            dp,
+                            db,
+                            &mut derivs,
+                        );
+                    }
+                    for d in &derivs {
+                        f[part] -= d.grad[0];
+                        match &pair.points {
+                            Points::Mpm { range } => {
+                                on_particles[range.0 + d.particle as usize] -= d.grad[0];
+                            }
+                            Points::Fem { body } => {
+                                let v = self.fem[*body].boundary.vertices()[d.particle as usize];
+                                on_vertices[*body][v] -= d.grad[0];
+                            }
+                        }
+                        for s in 1..d.n {
+                            on_vertices[pair.facets_of][d.vertices[s - 1] as usize] -= d.grad[s];
+                        }
+                    }
                 }
             }
             out.push(f);

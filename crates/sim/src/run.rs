@@ -233,16 +233,8 @@ fn drive<const D: usize>(
     let name = summary.scene.clone();
     let frame_dt = world.scene.spec.time.frame_interval.unwrap_or(world.dt);
     let mut m0 = world.measure();
-    // The initial state's barrier forces (no step yet, so no friction).
-    let initial: Vec<[[f64; 3]; 2]> = world
-        .contact_forces()
-        .iter()
-        .map(|p| {
-            let f = std::array::from_fn(|a| if a < D { p.on_points[a] } else { 0.0 });
-            [f, [0.0; 3]]
-        })
-        .collect();
-    (m0.contact_forces, m0.friction_forces) = world.body_forces(&initial);
+    // Forces are those of a step: none before the first.
+    (m0.contact_forces, m0.friction_forces) = world.body_forces(&[]);
     out.metrics_row::<D>(&m0)?;
     summary.max_penetrations = m0.penetrations;
     all.push(m0);

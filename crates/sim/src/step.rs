@@ -256,8 +256,14 @@ impl<const D: usize> World<D> {
         }
         let (nterms, dmin) = obj.contact_summary(&x);
         let pad = |v: &SVector<f64, D>| std::array::from_fn(|a| if a < D { v[a] } else { 0.0 });
+        let mut on_particles = vec![SVector::zeros(); self.mpm.as_ref().map_or(0, |m| m.x.len())];
+        let mut on_vertices: Vec<Vec<SVector<f64, D>>> = self
+            .fem
+            .iter()
+            .map(|b| vec![SVector::zeros(); b.x.len()])
+            .collect();
         report.pair_forces = obj
-            .pair_forces(&x)
+            .pair_forces(&x, &mut on_particles, &mut on_vertices)
             .iter()
             .map(|[b, f]| [pad(b), pad(f)])
             .collect();
@@ -265,6 +271,12 @@ impl<const D: usize> World<D> {
         report.min_distance = dmin;
         report.objective = obj.timing;
         drop(obj);
+        if let Some(m) = self.mpm.as_mut() {
+            m.contact_force = on_particles;
+        }
+        for (body, f) in self.fem.iter_mut().zip(on_vertices) {
+            body.contact_force = f;
+        }
         if x.iter().any(|v| !v.is_finite()) {
             return Err(fail(
                 self,

@@ -58,6 +58,9 @@ pub struct Mpm<const D: usize> {
     pub body: Vec<u16>,
     /// MPM bodies: name, material, particle range.
     pub bodies: Vec<MpmBody>,
+    /// Contact force on each particle (barrier and friction) at the end of the last step; zero
+    /// before the first.
+    pub contact_force: Vec<SVector<f64, D>>,
 }
 
 /// One MPM body.
@@ -104,6 +107,9 @@ pub struct FemBody<const D: usize> {
     /// Per boundary vertex (same order as `boundary.vertices()`): lumped boundary measure, the
     /// contact weight of the vertex when it acts as a "particle" against another FEM body.
     pub vertex_weight: Vec<f64>,
+    /// Contact force on each vertex (barrier and friction, as a point and as a facet vertex) at
+    /// the end of the last step; zero before the first.
+    pub contact_force: Vec<SVector<f64, D>>,
 }
 
 impl<const D: usize> FemBody<D> {
@@ -319,6 +325,7 @@ impl<const D: usize> World<D> {
                             weight: Vec::new(),
                             body: Vec::new(),
                             bodies: Vec::new(),
+                            contact_force: Vec::new(),
                         }
                     });
                     let ppc = particles_per_cell.unwrap_or(if D == 2 { 4 } else { 8 });
@@ -368,6 +375,7 @@ impl<const D: usize> World<D> {
                         state.volume.push(samples.volume[k]);
                         state.weight.push(particle_weight::<D>(samples.volume[k]));
                         state.body.push(state.bodies.len() as u16);
+                        state.contact_force.push(SVector::zeros());
                     }
                     slot.push((true, state.bodies.len()));
                     state.bodies.push(MpmBody {
@@ -483,6 +491,7 @@ impl<const D: usize> World<D> {
                         boundary,
                         facets,
                         vertex_weight,
+                        contact_force: vec![SVector::zeros(); m.num_vertices()],
                         mesh: m,
                     });
                 }

@@ -442,3 +442,48 @@ fn contact_forces_in_the_metrics_are_the_impulse_of_every_step() {
         assert!(friction_seen > 0.1 * mass, "{d}D: friction {friction_seen}");
     }
 }
+
+/// The per-particle and per-vertex contact forces of the frames add up to the per-body forces of
+/// the metrics, step by step: the block's particles to the block's force, the plate's vertices
+/// to the plate's.
+#[test]
+fn per_point_contact_forces_add_up_to_the_body_forces() {
+    let json = r#"{ "dimension": 2, "gravity": [0, -9.81],
+      "time": { "dt": 0.01, "duration": 0.1 },
+      "solver": { "tolerance": 1e-7 },
+      "mpm": { "grid_spacing": 0.05 },
+      "bodies": [
+        { "kind": "mpm", "name": "block", "shape": { "box": { "min": [-0.2, 0.004], "max": [0.2, 0.204] } },
+          "material": { "E": 1e5, "nu": 0.3, "rho": 1000 }, "velocity": [1.0, -0.5] },
+        { "kind": "fem", "name": "plate",
+          "mesh": { "rectangle": { "min": [-2, -0.1], "max": [2, 0], "cells": [40, 1] } },
+          "material": { "E": 1e7, "nu": 0.3, "rho": 1000 },
+          "prescribed": [ { "vertices": "all", "motion": [] } ] } ],
+      "contact": { "dhat": 0.005, "kappa": 1e5, "friction": 0.5 } }"#;
+    let s = scene::parse(json, "p.json", ".".into(), "p").unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    let mut checked = 0;
+    femp::run::run_with::<2>(
+        s,
+        dir.path(),
+        &RunOptions {
+            no_frames: true,
+            ..Default::default()
+        },
+        |w, m| {
+            let particles: nalgebra::Vector2<f64> =
+                w.mpm.as_ref().unwrap().contact_force.iter().sum();
+            let plate: nalgebra::Vector2<f64> = w.fem[0].contact_force.iter().sum();
+            for a in 0..2 {
+                let scale = m.contact_forces[0][a].abs().max(1e-9);
+                assert!((particles[a] - m.contact_forces[0][a]).abs() <= 1e-9 * scale);
+                assert!((plate[a] - m.contact_forces[1][a]).abs() <= 1e-9 * scale);
+            }
+            if m.contact_forces[0][1] > 0.0 {
+                checked += 1;
+            }
+        },
+    )
+    .unwrap();
+    assert!(checked >= 3, "{checked} steps in contact");
+}
