@@ -12,7 +12,11 @@
 //! * [`friction`] — lagged smoothed Coulomb friction (eqs. 34–37) with the units derivation;
 //! * [`ccd`] — conservative continuous collision detection and the line search's largest
 //!   feasible step;
-//! * [`broad_phase`] — candidate particle–facet pairs, now and over a step.
+//! * [`broad_phase`] — candidate particle–facet pairs, now and over a step;
+//! * [`single`] — one point against one edge or triangle in one call (potential, gradient,
+//!   exact or projected Hessian), for users with their own contact set. The barrier acts on the
+//!   distance `d` (eq. 27), not on `d²` as the IPC Toolkit's does: κ and d̂ do not carry over
+//!   unchanged.
 //!
 //! ```
 //! use femp_contact::{BoundaryTopology, ContactPotential, LogBarrier, broad_phase, particle_weight};
@@ -43,6 +47,7 @@ pub mod distance;
 mod error;
 pub mod friction;
 mod potential;
+pub mod single;
 
 pub use barrier::LogBarrier;
 pub use error::ContactError;

@@ -236,6 +236,9 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                         );
                     }
                 }
+                for warning in w.warnings() {
+                    s += &format!("\n  warning: {warning}");
+                }
                 s
             }
             let what = match dim {

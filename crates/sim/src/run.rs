@@ -145,6 +145,12 @@ pub fn run_with<const D: usize>(
         }),
         ..Default::default()
     };
+    for w in world.warnings() {
+        if opts.progress {
+            note(format_args!("[{name}] warning: {w}"));
+        }
+        summary.warnings.push(w);
+    }
     // A summary from the start: a run killed outright still says `running` and what it is.
     out.summary(&summary)?;
     let mut all = Vec::new();

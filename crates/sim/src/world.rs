@@ -269,6 +269,26 @@ fn rigid_velocity<const D: usize>(
 }
 
 impl<const D: usize> World<D> {
+    /// What the scene asks for that femp does not fully model, one sentence each: printed by
+    /// `femp check` and at the start of a run, and kept in summary.json's `warnings`.
+    pub fn warnings(&self) -> Vec<String> {
+        let mut w = Vec::new();
+        if D == 3 && self.augury.is_none() {
+            for p in &self.pairs {
+                if let Points::Fem { .. } = p.points {
+                    w.push(format!(
+                        "FEM–FEM contact between `{}` and `{}` in 3D is vertex–facet only: without \
+                         edge–edge terms two coarse meshes can pass edge through edge unseen \
+                         (docs/contact.md)",
+                        p.names.0, p.names.1
+                    ));
+                    break;
+                }
+            }
+        }
+        w
+    }
+
     /// Build the state of a validated scene (the scene's dimension must be `D`). Rejects
     /// initially overlapping bodies.
     pub fn build(scene: Scene) -> Result<Self, SimError> {

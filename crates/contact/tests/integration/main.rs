@@ -7,3 +7,4 @@ mod ccd;
 mod derivatives;
 mod potential;
 mod reference;
+mod single;

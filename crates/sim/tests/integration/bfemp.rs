@@ -487,3 +487,41 @@ fn per_point_contact_forces_add_up_to_the_body_forces() {
     .unwrap();
     assert!(checked >= 3, "{checked} steps in contact");
 }
+
+/// 3D FEM–FEM contact has no edge–edge terms: the world says so (check, run, summary.json),
+/// and says nothing for MPM–FEM contact in 3D.
+#[test]
+fn three_d_fem_fem_contact_is_flagged_as_vertex_facet_only() {
+    let body = |name: &str, y0: f64, y1: f64| {
+        format!(
+            r#"{{ "kind": "fem", "name": "{name}",
+                  "mesh": {{ "cuboid": {{ "min": [0, {y0}, 0], "max": [1, {y1}, 1], "cells": [1, 1, 1] }} }},
+                  "material": {{ "E": 1e6, "nu": 0.3, "rho": 1000 }} }}"#
+        )
+    };
+    let scene = |bodies: String| {
+        format!(
+            r#"{{ "dimension": 3, "time": {{ "dt": 0.01, "duration": 0.01 }}, "mpm": {{ "grid_spacing": 0.5 }},
+                 "bodies": [ {bodies} ], "contact": {{ "dhat": 0.01, "kappa": 1e5 }} }}"#
+        )
+    };
+    let fem_fem = scene(format!("{}, {}", body("a", 0.0, 1.0), body("b", 1.1, 2.0)));
+    let w = femp::World::<3>::build(scene::parse(&fem_fem, "s.json", ".".into(), "s").unwrap())
+        .unwrap()
+        .warnings();
+    assert_eq!(w.len(), 1, "{w:?}");
+    assert!(
+        w[0].contains("edge–edge") && w[0].contains("`a`"),
+        "{}",
+        w[0]
+    );
+    let mpm_fem = scene(format!(
+        r#"{}, {{ "kind": "mpm", "name": "m", "shape": {{ "box": {{ "min": [0, 1.1, 0], "max": [1, 2, 1] }} }},
+                  "material": {{ "E": 1e6, "nu": 0.3, "rho": 1000 }} }}"#,
+        body("a", 0.0, 1.0)
+    ));
+    let w = femp::World::<3>::build(scene::parse(&mpm_fem, "s.json", ".".into(), "s").unwrap())
+        .unwrap()
+        .warnings();
+    assert!(w.is_empty(), "{w:?}");
+}
