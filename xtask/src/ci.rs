@@ -20,6 +20,9 @@ const STEPS: &[(&str, &[&str])] = &[
     ("validate", &["xtask", "validate", "--quick", "--jobs", "2"]),
 ];
 
+/// The Python package's tests (after the Rust tests in `.ci/run`; a script, not cargo).
+const PYTHON_TESTS: &str = "crates/python/test.sh";
+
 pub fn run() -> anyhow::Result<()> {
     let cargo = std::env::var("CARGO").unwrap_or_else(|_| "cargo".into());
     let mut failed = Vec::new();
@@ -32,6 +35,18 @@ pub fn run() -> anyhow::Result<()> {
             .unwrap_or(false);
         if !ok {
             failed.push(*name);
+        }
+        if *name == "tests" {
+            eprintln!("== python: {PYTHON_TESTS}");
+            let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("..");
+            let ok = Command::new(root.join(PYTHON_TESTS))
+                .current_dir(&root)
+                .status()
+                .map(|s| s.success())
+                .unwrap_or(false);
+            if !ok {
+                failed.push("python");
+            }
         }
     }
     if failed.is_empty() {

@@ -84,6 +84,24 @@ pub fn csv_header<const D: usize>(forces_of: &[&str]) -> String {
 }
 
 impl Metrics {
+    /// Fill the solver columns (Newton and friction iterations, contact terms, backtracks, …)
+    /// from the report of the step that led to this state, and lower `min_distance` to the
+    /// step's smallest contact distance.
+    pub fn record_step(&mut self, report: &crate::StepReport) {
+        let s = &report.stats;
+        self.newton_iterations = report.newton_iterations;
+        self.friction_iterations = report.friction_iterations;
+        self.contact_terms = report.contact_terms;
+        self.backtracks = s.backtracks;
+        self.ccd_limited = s.limited_by_ccd;
+        self.exact_hessians = s.exact_iterations;
+        self.reused_hessians = s.reused_hessians;
+        self.pcg_iterations = s.pcg_iterations;
+        if report.contact_terms > 0 {
+            self.min_distance = self.min_distance.min(report.min_distance);
+        }
+    }
+
     /// One CSV row.
     pub fn csv_row<const D: usize>(&self) -> String {
         let mut r = format!(

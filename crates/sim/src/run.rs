@@ -49,6 +49,9 @@ pub struct RunResult {
     pub summary: Summary,
     /// Every step's metrics (as written to `metrics.csv`), starting with the initial state.
     pub metrics: Vec<Metrics>,
+    /// The bodies with contact-force columns in `metrics.csv`
+    /// ([`crate::metrics::csv_header`]'s `forces_of`).
+    pub force_bodies: Vec<String>,
 }
 
 /// Run a scene, writing into `out_dir`. On failure the files written so far stay, the summary
@@ -202,6 +205,7 @@ pub fn run_with<const D: usize>(
     Ok(RunResult {
         summary,
         metrics: all,
+        force_bodies: world.force_bodies().iter().map(|s| s.to_string()).collect(),
     })
 }
 
@@ -361,17 +365,7 @@ fn eta(elapsed: f64, done: usize, total: usize) -> String {
 /// Copy a step's solver report into its metrics row and add it to the summary's totals.
 fn record(m: &mut Metrics, summary: &mut Summary, report: &StepReport) {
     let s = &report.stats;
-    m.newton_iterations = report.newton_iterations;
-    m.friction_iterations = report.friction_iterations;
-    m.contact_terms = report.contact_terms;
-    m.backtracks = s.backtracks;
-    m.ccd_limited = s.limited_by_ccd;
-    m.exact_hessians = s.exact_iterations;
-    m.reused_hessians = s.reused_hessians;
-    m.pcg_iterations = s.pcg_iterations;
-    if report.contact_terms > 0 {
-        m.min_distance = m.min_distance.min(report.min_distance);
-    }
+    m.record_step(report);
     summary.newton_iterations += report.newton_iterations;
     summary.friction_iterations += report.friction_iterations;
     summary.exact_hessian_iterations += s.exact_iterations;

@@ -1,0 +1,964 @@
+//! Python bindings of femp (the `femp._femp` extension module; the `femp` Python package in
+//! `python/femp` wraps it). Scenes load and edit as JSON, runs write the same outputs as the
+//! `femp` program, worlds step from Python with their state as numpy arrays, and the contact
+//! and transfer building blocks are callable one at a time. See `docs/python.md`.
+//!
+//! Every long call releases the GIL and runs on a worker thread while the calling thread polls
+//! for Python signals: Ctrl-C stops a run or a step (between Newton iterations) and raises
+//! `KeyboardInterrupt`.
+
+use std::path::PathBuf;
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::time::Duration;
+
+use femp::SimError;
+use femp::run::{RunOptions, RunResult};
+use femp::scene::Scene;
+use femp_contact::ccd::CcdOptions;
+use femp_contact::single::{self, Hessian};
+use femp_contact::{ContactError, LogBarrier};
+use femp_fem::Hyperelastic;
+use femp_kernels::{Grid, Kernel, Stencils};
+use nalgebra::{SMatrix, SVector, Vector3};
+use numpy::ndarray::{Array1, Array2, Array3};
+use numpy::{IntoPyArray, PyReadonlyArray1, PyReadonlyArray2, PyReadonlyArray3};
+use pyo3::create_exception;
+use pyo3::exceptions::{PyException, PyKeyboardInterrupt, PyOSError, PyValueError};
+use pyo3::prelude::*;
+use pyo3::types::PyDict;
+
+create_exception!(
+    _femp,
+    FempError,
+    PyException,
+    "Base class of femp's errors."
+);
+create_exception!(
+    _femp,
+    SceneError,
+    FempError,
+    "A scene that is malformed, non-physical, too large or starts with bodies overlapping: the message names the field."
+);
+create_exception!(
+    _femp,
+    SimulationError,
+    FempError,
+    "A run or step that failed part-way (Newton not converging, a blow-up): outputs written so far stay."
+);
+create_exception!(
+    _femp,
+    OutputError,
+    FempError,
+    "An output directory that is busy (another run holds it) or holds an earlier run's outputs."
+);
+
+/// femp's error as the matching Python exception.
+fn py_err(e: SimError) -> PyErr {
+    let msg = e.to_string();
+    match e {
+        SimError::Io { .. } => PyOSError::new_err(msg),
+        SimError::SceneFormat { .. }
+        | SimError::Invalid { .. }
+        | SimError::Overlap { .. }
+        | SimError::TooLarge { .. } => SceneError::new_err(msg),
+        SimError::Interrupted { .. } => PyKeyboardInterrupt::new_err(msg),
+        SimError::OutputBusy { .. } | SimError::StaleOutput { .. } => OutputError::new_err(msg),
+        _ => SimulationError::new_err(msg),
+    }
+}
+
+fn contact_err(e: ContactError) -> PyErr {
+    PyValueError::new_err(e.to_string())
+}
+
+/// Run `f` on a worker thread with the GIL released, polling the calling thread for signals
+/// every 20 ms; a signal (Ctrl-C) sets the interrupt flag `f` was given, waits for `f` to stop
+/// and re-raises the signal's exception.
+fn interruptible<T: Send>(
+    py: Python<'_>,
+    f: impl FnOnce(Arc<AtomicBool>) -> T + Send,
+) -> PyResult<T> {
+    let flag = Arc::new(AtomicBool::new(false));
+    std::thread::scope(|s| {
+        let worker = {
+            let flag = flag.clone();
+            s.spawn(move || f(flag))
+        };
+        loop {
+            let done = py.detach(|| {
+                std::thread::sleep(Duration::from_millis(20));
+                worker.is_finished()
+            });
+            if done {
+                break;
+            }
+            if let Err(e) = py.check_signals() {
+                flag.store(true, Ordering::SeqCst);
+                let _ = py.detach(|| worker.join());
+                return Err(e);
+            }
+        }
+        py.detach(|| worker.join())
+            .map_err(|_| SimulationError::new_err("femp panicked (a bug: please report it)"))
+    })
+}
+
+// ---------------------------------------------------------------------------------------------
+// Scenes and runs
+
+/// A validated scene: parsed from JSON, with the directory its relative mesh paths resolve
+/// against. Edit it as a dict (`femp.Scene.to_dict` / `femp.Scene.from_dict` in the Python
+/// package) and validate again.
+#[pyclass(name = "Scene", module = "femp", frozen)]
+#[derive(Clone)]
+struct PyScene {
+    scene: Scene,
+}
+
+#[pymethods]
+impl PyScene {
+    /// Read, parse and validate a scene file.
+    #[staticmethod]
+    fn load(py: Python<'_>, path: PathBuf) -> PyResult<Self> {
+        py.detach(|| femp::scene::load(&path))
+            .map(|scene| Self { scene })
+            .map_err(py_err)
+    }
+
+    /// Parse and validate scene JSON text; relative mesh paths resolve against `base_dir`;
+    /// `name` is used when the text has no `name` field.
+    #[staticmethod]
+    #[pyo3(signature = (text, base_dir = PathBuf::from("."), name = "scene"))]
+    fn from_json(text: &str, base_dir: PathBuf, name: &str) -> PyResult<Self> {
+        femp::scene::parse(text, "<python>", base_dir, name)
+            .map(|scene| Self { scene })
+            .map_err(py_err)
+    }
+
+    /// The JSON text the scene was parsed from.
+    fn to_json(&self) -> String {
+        self.scene.source.clone().unwrap_or_default()
+    }
+
+    /// The scene's name (its `name` field, the file stem, or the `name` argument).
+    #[getter]
+    fn name(&self) -> String {
+        self.scene.name.clone()
+    }
+
+    /// 2 or 3.
+    #[getter]
+    fn dimension(&self) -> usize {
+        self.scene.spec.dimension
+    }
+
+    /// The directory relative mesh paths resolve against.
+    #[getter]
+    fn base_dir(&self) -> PathBuf {
+        self.scene.base_dir.clone()
+    }
+
+    /// What `femp check` prints: the size estimate (particles, nodes, DOFs, memory, steps).
+    fn estimate(&self) -> PyResult<String> {
+        femp::scene::size::estimate(&self.scene)
+            .map(|e| e.describe())
+            .map_err(py_err)
+    }
+
+    fn __repr__(&self) -> String {
+        format!(
+            "femp.Scene(name={:?}, dimension={})",
+            self.scene.name, self.scene.spec.dimension
+        )
+    }
+}
+
+/// Run a scene to its end (or `max_steps`), writing frames, `metrics.csv` and `summary.json`
+/// into `out` exactly as `femp run` does. Returns `(summary_json, metrics_header, rows)`:
+/// the summary as JSON text, the CSV header, and one row of numbers per step.
+#[pyfunction]
+#[pyo3(signature = (scene, out, max_steps = None, frames = true, overwrite = false, progress = false))]
+fn run(
+    py: Python<'_>,
+    scene: &PyScene,
+    out: PathBuf,
+    max_steps: Option<usize>,
+    frames: bool,
+    overwrite: bool,
+    progress: bool,
+) -> PyResult<(String, String, Vec<Vec<f64>>)> {
+    let scene = scene.scene.clone();
+    let dim = scene.spec.dimension;
+    let result: Result<RunResult, SimError> = interruptible(py, |flag| {
+        let opts = RunOptions {
+            progress,
+            max_steps,
+            no_frames: !frames,
+            interrupt: Some(flag),
+            overwrite,
+            command: vec!["python: femp.run".into()],
+            ..Default::default()
+        };
+        femp::run::run(scene, &out, &opts)
+    })?;
+    let r = result.map_err(py_err)?;
+    let summary = serde_json::to_string(&r.summary)
+        .map_err(|e| SimulationError::new_err(format!("summary: {e}")))?;
+    let names: Vec<&str> = r.force_bodies.iter().map(String::as_str).collect();
+    let (header, rows) = match dim {
+        2 => table::<2>(&names, &r),
+        _ => table::<3>(&names, &r),
+    };
+    Ok((summary, header, rows))
+}
+
+/// The metrics of a run as the CSV's header and rows of numbers.
+fn table<const D: usize>(forces_of: &[&str], r: &RunResult) -> (String, Vec<Vec<f64>>) {
+    let header = femp::metrics::csv_header::<D>(forces_of);
+    let rows = r
+        .metrics
+        .iter()
+        .map(|m| parse_row(&m.csv_row::<D>()))
+        .collect();
+    (header, rows)
+}
+
+fn parse_row(row: &str) -> Vec<f64> {
+    row.split(',')
+        .map(|v| v.parse::<f64>().unwrap_or(f64::NAN))
+        .collect()
+}
+
+// ---------------------------------------------------------------------------------------------
+// Worlds stepped from Python
+
+enum AnyWorld {
+    D2(Box<femp::World<2>>),
+    D3(Box<femp::World<3>>),
+}
+
+macro_rules! with_world {
+    ($w:expr, $v:ident => $body:expr) => {
+        match $w {
+            AnyWorld::D2($v) => $body,
+            AnyWorld::D3($v) => $body,
+        }
+    };
+}
+
+/// A simulation state that steps on demand: `step()` advances one time step (BFEMP or augury,
+/// as the scene says); positions, velocities and forces read out as numpy arrays (copies).
+#[pyclass(name = "World", module = "femp")]
+struct PyWorld {
+    world: AnyWorld,
+    /// The last step's report (its solver columns and contact forces go into `metrics()`).
+    last: Option<femp::StepReport>,
+}
+
+fn vectors<const D: usize>(v: &[SVector<f64, D>]) -> Array2<f64> {
+    Array2::from_shape_fn((v.len(), D), |(i, a)| v[i][a])
+}
+
+fn matrices<const D: usize>(v: &[SMatrix<f64, D, D>]) -> Array3<f64> {
+    Array3::from_shape_fn((v.len(), D, D), |(i, a, b)| v[i][(a, b)])
+}
+
+fn report_dict<'py>(py: Python<'py>, r: &femp::StepReport) -> PyResult<Bound<'py, PyDict>> {
+    let d = PyDict::new(py);
+    d.set_item("newton_iterations", r.newton_iterations)?;
+    d.set_item("friction_iterations", r.friction_iterations)?;
+    d.set_item("friction_converged", r.friction_converged)?;
+    d.set_item("contact_terms", r.contact_terms)?;
+    d.set_item("min_distance", r.min_distance)?;
+    Ok(d)
+}
+
+impl PyWorld {
+    fn particles_d<'py, const D: usize>(
+        py: Python<'py>,
+        w: &femp::World<D>,
+    ) -> PyResult<Bound<'py, PyDict>> {
+        let d = PyDict::new(py);
+        let Some(m) = &w.mpm else {
+            d.set_item("x", Array2::<f64>::zeros((0, D)).into_pyarray(py))?;
+            d.set_item("body_names", Vec::<String>::new())?;
+            return Ok(d);
+        };
+        d.set_item("x", vectors(&m.x).into_pyarray(py))?;
+        d.set_item("v", vectors(&m.v).into_pyarray(py))?;
+        d.set_item("mass", Array1::from(m.mass.clone()).into_pyarray(py))?;
+        d.set_item(
+            "rest_volume",
+            Array1::from(m.volume.clone()).into_pyarray(py),
+        )?;
+        let det: Vec<f64> = m.f.iter().map(femp_fem::linalg::det).collect();
+        let volume: Vec<f64> = m.volume.iter().zip(&det).map(|(v, j)| v * j).collect();
+        d.set_item("volume", Array1::from(volume).into_pyarray(py))?;
+        d.set_item("F", matrices(&m.f).into_pyarray(py))?;
+        d.set_item("B", matrices(&m.b).into_pyarray(py))?;
+        let stress: Vec<SMatrix<f64, D, D>> = (0..m.x.len())
+            .map(|p| {
+                let mat = &m.bodies[m.body[p] as usize].material;
+                femp_fem::material::cauchy(&mat.first_piola(&m.f[p]), &m.f[p])
+            })
+            .collect();
+        d.set_item("stress", matrices(&stress).into_pyarray(py))?;
+        d.set_item("contact_force", vectors(&m.contact_force).into_pyarray(py))?;
+        let body: Vec<i64> = m.body.iter().map(|&b| i64::from(b)).collect();
+        d.set_item("body", Array1::from(body).into_pyarray(py))?;
+        d.set_item(
+            "body_names",
+            m.bodies.iter().map(|b| b.name.clone()).collect::<Vec<_>>(),
+        )?;
+        Ok(d)
+    }
+
+    fn fem_d<'py, const D: usize>(
+        py: Python<'py>,
+        w: &femp::World<D>,
+        name: &str,
+    ) -> PyResult<Bound<'py, PyDict>> {
+        let Some(b) = w.fem.iter().find(|b| b.name == name) else {
+            let known: Vec<&str> = w.fem.iter().map(|b| b.name.as_str()).collect();
+            return Err(PyValueError::new_err(format!(
+                "no FEM body `{name}` (the scene's FEM bodies: {known:?})"
+            )));
+        };
+        let d = PyDict::new(py);
+        d.set_item("x", vectors(&b.x).into_pyarray(py))?;
+        d.set_item("v", vectors(&b.v).into_pyarray(py))?;
+        d.set_item("rest", vectors(b.mesh.vertices()).into_pyarray(py))?;
+        d.set_item("initial", vectors(&b.initial).into_pyarray(py))?;
+        d.set_item("mass", Array1::from(b.mass.clone()).into_pyarray(py))?;
+        let cells = b.mesh.cells();
+        let elements = Array2::from_shape_fn((cells.len(), D + 1), |(e, k)| cells[e][k] as i64);
+        d.set_item("elements", elements.into_pyarray(py))?;
+        let facets = Array2::from_shape_fn((b.facets.len(), D), |(f, k)| i64::from(b.facets[f][k]));
+        d.set_item("facets", facets.into_pyarray(py))?;
+        d.set_item(
+            "stress",
+            matrices(&b.elastic.cauchy_stress(&b.x)).into_pyarray(py),
+        )?;
+        d.set_item("contact_force", vectors(&b.contact_force).into_pyarray(py))?;
+        Ok(d)
+    }
+
+    fn metrics_d<'py, const D: usize>(
+        py: Python<'py>,
+        w: &femp::World<D>,
+        last: Option<&femp::StepReport>,
+    ) -> PyResult<Bound<'py, PyDict>> {
+        let names = w.force_bodies();
+        let mut m = w.measure();
+        if let Some(r) = last {
+            m.record_step(r);
+        }
+        (m.contact_forces, m.friction_forces) =
+            w.body_forces(last.map_or(&[][..], |r| &r.pair_forces[..]));
+        let header = femp::metrics::csv_header::<D>(&names);
+        let d = PyDict::new(py);
+        for (k, v) in header.split(',').zip(parse_row(&m.csv_row::<D>())) {
+            d.set_item(k, v)?;
+        }
+        Ok(d)
+    }
+}
+
+#[pymethods]
+impl PyWorld {
+    /// Build the world of a scene (particles sampled, meshes read, contact pairs set up).
+    #[new]
+    fn new(py: Python<'_>, scene: &PyScene) -> PyResult<Self> {
+        let scene = scene.scene.clone();
+        let world = py
+            .detach(|| match scene.spec.dimension {
+                2 => femp::World::<2>::build(scene).map(|w| AnyWorld::D2(Box::new(w))),
+                _ => femp::World::<3>::build(scene).map(|w| AnyWorld::D3(Box::new(w))),
+            })
+            .map_err(py_err)?;
+        Ok(Self { world, last: None })
+    }
+
+    /// Advance `n` time steps (default 1); returns the last step's solver report
+    /// (`newton_iterations`, `friction_iterations`, `friction_converged`, `contact_terms`,
+    /// `min_distance`). A failed step raises `SimulationError`; Ctrl-C, `KeyboardInterrupt`.
+    #[pyo3(signature = (n = 1))]
+    fn step<'py>(&mut self, py: Python<'py>, n: usize) -> PyResult<Bound<'py, PyDict>> {
+        let world = &mut self.world;
+        let report = interruptible(py, |flag| {
+            with_world!(world, w => {
+                w.set_interrupt(Some(flag));
+                let mut last = None;
+                for _ in 0..n {
+                    match w.step() {
+                        Ok(r) => last = Some(r),
+                        Err(e) => {
+                            w.set_interrupt(None);
+                            return Err(e);
+                        }
+                    }
+                }
+                w.set_interrupt(None);
+                Ok(last)
+            })
+        })?
+        .map_err(py_err)?;
+        match report {
+            Some(r) => {
+                let d = report_dict(py, &r);
+                self.last = Some(r);
+                d
+            }
+            None => Ok(PyDict::new(py)),
+        }
+    }
+
+    /// Simulated time (s).
+    #[getter]
+    fn time(&self) -> f64 {
+        with_world!(&self.world, w => w.time)
+    }
+
+    /// Steps taken.
+    #[getter]
+    fn steps(&self) -> usize {
+        with_world!(&self.world, w => w.step)
+    }
+
+    /// The time step (s).
+    #[getter]
+    fn dt(&self) -> f64 {
+        with_world!(&self.world, w => w.dt)
+    }
+
+    /// 2 or 3.
+    #[getter]
+    fn dimension(&self) -> usize {
+        match self.world {
+            AnyWorld::D2(_) => 2,
+            AnyWorld::D3(_) => 3,
+        }
+    }
+
+    /// Names of the FEM bodies.
+    #[getter]
+    fn fem_bodies(&self) -> Vec<String> {
+        with_world!(&self.world, w => w.fem.iter().map(|b| b.name.clone()).collect())
+    }
+
+    /// Names of the MPM bodies (`particles()["body"]` indexes this list).
+    #[getter]
+    fn mpm_bodies(&self) -> Vec<String> {
+        with_world!(&self.world, w => w.mpm.as_ref().map_or_else(Vec::new, |m| {
+            m.bodies.iter().map(|b| b.name.clone()).collect()
+        }))
+    }
+
+    /// All particles: `x`, `v` (n×D), `mass`, `volume` (current), `rest_volume` (n), `F`, `B`,
+    /// `stress` (Cauchy; n×D×D), `contact_force` (n×D, the last step's), `body` (n, an index
+    /// into `body_names`).
+    fn particles<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+        with_world!(&self.world, w => Self::particles_d(py, w))
+    }
+
+    /// One FEM body: `x`, `v`, `rest` (mesh vertices), `initial` (after the scene's transform),
+    /// `mass` (lumped), `elements` (cells × (D+1) vertex indices), `facets` (boundary facets ×
+    /// D), `stress` (Cauchy per element), `contact_force` (per vertex, the last step's).
+    fn fem<'py>(&self, py: Python<'py>, name: &str) -> PyResult<Bound<'py, PyDict>> {
+        with_world!(&self.world, w => Self::fem_d(py, w, name))
+    }
+
+    /// The current metrics as a dict keyed by `metrics.csv`'s columns: energies, momenta, and
+    /// the last step's solver columns and per-body contact forces (`wall_s` is 0 here).
+    fn metrics<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+        let last = self.last.as_ref();
+        with_world!(&self.world, w => Self::metrics_d(py, w, last))
+    }
+
+    /// Warnings about what the scene asks for and femp does not fully model.
+    fn warnings(&self) -> Vec<String> {
+        with_world!(&self.world, w => w.warnings())
+    }
+
+    fn __repr__(&self) -> String {
+        format!(
+            "femp.World(dimension={}, steps={}, time={:.6e})",
+            self.dimension(),
+            self.steps(),
+            self.time()
+        )
+    }
+}
+
+// ---------------------------------------------------------------------------------------------
+// Single contacts, barrier and CCD
+
+fn point<const D: usize>(a: &PyReadonlyArray1<'_, f64>, what: &str) -> PyResult<SVector<f64, D>> {
+    let a = a.as_array();
+    if a.len() != D {
+        return Err(PyValueError::new_err(format!(
+            "{what}: expected {D} coordinates, got {}",
+            a.len()
+        )));
+    }
+    Ok(SVector::from_fn(|i, _| a[i]))
+}
+
+fn hessian_kind(s: &str) -> PyResult<Hessian> {
+    match s {
+        "projected" => Ok(Hessian::Projected),
+        "exact" => Ok(Hessian::Exact),
+        _ => Err(PyValueError::new_err(format!(
+            "hessian = {s:?}: expected \"projected\" or \"exact\""
+        ))),
+    }
+}
+
+fn contact_dict<'py, const D: usize, const N: usize>(
+    py: Python<'py>,
+    c: &single::Contact<D, N>,
+) -> PyResult<Bound<'py, PyDict>> {
+    let d = PyDict::new(py);
+    d.set_item("distance", c.distance)?;
+    d.set_item("value", c.value)?;
+    d.set_item("gradient", vectors(&c.gradient).into_pyarray(py))?;
+    let h = Array2::from_shape_fn((N * D, N * D), |(r, col)| {
+        c.hessian[r / D][col / D][(r % D, col % D)]
+    });
+    d.set_item("hessian", h.into_pyarray(py))?;
+    Ok(d)
+}
+
+/// The barrier potential `w b(d)` of point `p` against edge `e0 e1` (2D or 3D), with its
+/// gradient (3×D, rows p, e0, e1) and Hessian (3D×3D); `None` when `d ≥ dhat`. The barrier acts
+/// on `d`, not `d²` as the IPC Toolkit's does (docs/contact.md).
+#[pyfunction]
+#[pyo3(signature = (p, e0, e1, dhat, kappa, weight = 1.0, hessian = "projected"))]
+fn point_edge_potential<'py>(
+    py: Python<'py>,
+    p: PyReadonlyArray1<'py, f64>,
+    e0: PyReadonlyArray1<'py, f64>,
+    e1: PyReadonlyArray1<'py, f64>,
+    dhat: f64,
+    kappa: f64,
+    weight: f64,
+    hessian: &str,
+) -> PyResult<Option<Bound<'py, PyDict>>> {
+    let b = LogBarrier::new(dhat, kappa).map_err(contact_err)?;
+    let h = hessian_kind(hessian)?;
+    match p.as_array().len() {
+        2 => single::point_edge::<2>(
+            &b,
+            weight,
+            &point(&p, "p")?,
+            &point(&e0, "e0")?,
+            &point(&e1, "e1")?,
+            h,
+        )
+        .map_err(contact_err)?
+        .map(|c| contact_dict(py, &c))
+        .transpose(),
+        3 => single::point_edge::<3>(
+            &b,
+            weight,
+            &point(&p, "p")?,
+            &point(&e0, "e0")?,
+            &point(&e1, "e1")?,
+            h,
+        )
+        .map_err(contact_err)?
+        .map(|c| contact_dict(py, &c))
+        .transpose(),
+        n => Err(PyValueError::new_err(format!(
+            "p: expected 2 or 3 coordinates, got {n}"
+        ))),
+    }
+}
+
+/// The barrier potential of point `p` against triangle `t0 t1 t2` (3D): as
+/// [`point_edge_potential`], gradient 4×3, Hessian 12×12.
+#[pyfunction]
+#[pyo3(signature = (p, t0, t1, t2, dhat, kappa, weight = 1.0, hessian = "projected"))]
+fn point_triangle_potential<'py>(
+    py: Python<'py>,
+    p: PyReadonlyArray1<'py, f64>,
+    t0: PyReadonlyArray1<'py, f64>,
+    t1: PyReadonlyArray1<'py, f64>,
+    t2: PyReadonlyArray1<'py, f64>,
+    dhat: f64,
+    kappa: f64,
+    weight: f64,
+    hessian: &str,
+) -> PyResult<Option<Bound<'py, PyDict>>> {
+    let b = LogBarrier::new(dhat, kappa).map_err(contact_err)?;
+    single::point_triangle(
+        &b,
+        weight,
+        &point::<3>(&p, "p")?,
+        &point::<3>(&t0, "t0")?,
+        &point::<3>(&t1, "t1")?,
+        &point::<3>(&t2, "t2")?,
+        hessian_kind(hessian)?,
+    )
+    .map_err(contact_err)?
+    .map(|c| contact_dict(py, &c))
+    .transpose()
+}
+
+/// `(b(d), b'(d), b''(d))` of the log barrier `b(d) = −κ (d/d̂ − 1)² ln(d/d̂)` (BFEMP eq. 27);
+/// zero at `d ≥ d̂`.
+#[pyfunction]
+fn barrier(d: f64, dhat: f64, kappa: f64) -> PyResult<(f64, f64, f64)> {
+    let b = LogBarrier::new(dhat, kappa).map_err(contact_err)?;
+    if !(d > 0.0) {
+        return Err(PyValueError::new_err(format!(
+            "d = {d}: the barrier is defined for d > 0"
+        )));
+    }
+    Ok((b.value(d), b.first(d), b.second(d)))
+}
+
+/// Squared distance from point `p` to edge `e0 e1` (2D or 3D) or, with `t2`, to the triangle
+/// `e0 e1 t2` (3D).
+#[pyfunction]
+#[pyo3(signature = (p, e0, e1, t2 = None))]
+fn sq_distance(
+    p: PyReadonlyArray1<'_, f64>,
+    e0: PyReadonlyArray1<'_, f64>,
+    e1: PyReadonlyArray1<'_, f64>,
+    t2: Option<PyReadonlyArray1<'_, f64>>,
+) -> PyResult<f64> {
+    use femp_contact::distance::{point_edge, point_triangle};
+    match (p.as_array().len(), t2) {
+        (3, Some(t2)) => Ok(point_triangle::sq_dist(
+            &point::<3>(&p, "p")?,
+            &point::<3>(&e0, "t0")?,
+            &point::<3>(&e1, "t1")?,
+            &point::<3>(&t2, "t2")?,
+        )),
+        (2, None) => Ok(point_edge::sq_dist(
+            &point::<2>(&p, "p")?,
+            &point::<2>(&e0, "e0")?,
+            &point::<2>(&e1, "e1")?,
+        )),
+        (3, None) => Ok(point_edge::sq_dist(
+            &point::<3>(&p, "p")?,
+            &point::<3>(&e0, "e0")?,
+            &point::<3>(&e1, "e1")?,
+        )),
+        (n, _) => Err(PyValueError::new_err(format!(
+            "p: expected 2 coordinates (edge) or 3 (edge or triangle), got {n}"
+        ))),
+    }
+}
+
+/// Conservative time of impact in `[0, 1]` of a point moving linearly from `start[0]` to
+/// `end[0]` against an edge (2 more rows, 2D or 3D) or triangle (3 more rows, 3D) moving
+/// linearly from `start[1:]` to `end[1:]`; `None` when they do not come within the CCD's
+/// separation (additive CCD, docs/contact.md). Returns `(toi, iterations)`.
+#[pyfunction]
+#[pyo3(signature = (start, end, max_iterations = 800))]
+fn ccd_toi(
+    start: PyReadonlyArray2<'_, f64>,
+    end: PyReadonlyArray2<'_, f64>,
+    max_iterations: usize,
+) -> PyResult<(Option<f64>, usize)> {
+    let (a, b) = (start.as_array(), end.as_array());
+    if a.shape() != b.shape() {
+        return Err(PyValueError::new_err(format!(
+            "start and end: shapes {:?} and {:?} differ",
+            a.shape(),
+            b.shape()
+        )));
+    }
+    if a.iter().chain(b.iter()).any(|v| !v.is_finite()) {
+        return Err(PyValueError::new_err("start/end: non-finite coordinate"));
+    }
+    let opts = CcdOptions {
+        max_iterations: max_iterations.max(1),
+        ..Default::default()
+    };
+    fn rows<const D: usize>(a: &numpy::ndarray::ArrayView2<'_, f64>) -> Vec<SVector<f64, D>> {
+        (0..a.nrows())
+            .map(|i| SVector::from_fn(|k, _| a[(i, k)]))
+            .collect()
+    }
+    let r = match a.shape() {
+        [3, 2] => {
+            let (s, e) = (rows::<2>(&a), rows::<2>(&b));
+            femp_contact::ccd::point_edge(&s[0], &s[1], &s[2], &e[0], &e[1], &e[2], &opts)
+        }
+        [3, 3] => {
+            let (s, e) = (rows::<3>(&a), rows::<3>(&b));
+            femp_contact::ccd::point_edge(&s[0], &s[1], &s[2], &e[0], &e[1], &e[2], &opts)
+        }
+        [4, 3] => {
+            let (s, e) = (rows::<3>(&a), rows::<3>(&b));
+            let v = |x: &SVector<f64, 3>| Vector3::new(x[0], x[1], x[2]);
+            femp_contact::ccd::point_triangle(
+                &v(&s[0]),
+                &v(&s[1]),
+                &v(&s[2]),
+                &v(&s[3]),
+                &v(&e[0]),
+                &v(&e[1]),
+                &v(&e[2]),
+                &v(&e[3]),
+                &opts,
+            )
+        }
+        s => {
+            return Err(PyValueError::new_err(format!(
+                "start/end: shape {s:?}; expected (3, 2) or (3, 3) for point–edge, (4, 3) for point–triangle"
+            )));
+        }
+    };
+    Ok((r.toi, r.iterations))
+}
+
+// ---------------------------------------------------------------------------------------------
+// Transfers
+
+enum AnyStencils {
+    D2(Box<Stencils<2>>),
+    D3(Box<Stencils<3>>),
+}
+
+/// APIC/PIC transfers between particles at fixed positions and the quadratic B-spline grid
+/// nodes they touch (BFEMP Tables 1–3; augury eqs. 10–20). Grid arrays are indexed like
+/// `nodes` (integer node indices, nodes × D).
+#[pyclass(name = "Transfer", module = "femp")]
+struct PyTransfer {
+    stencils: AnyStencils,
+    particles: usize,
+}
+
+fn vec_rows<const D: usize>(
+    a: &PyReadonlyArray2<'_, f64>,
+    n: usize,
+    what: &str,
+) -> PyResult<Vec<SVector<f64, D>>> {
+    let a = a.as_array();
+    if a.shape() != [n, D] {
+        return Err(PyValueError::new_err(format!(
+            "{what}: shape {:?}, expected ({n}, {D})",
+            a.shape()
+        )));
+    }
+    Ok((0..n).map(|i| SVector::from_fn(|k, _| a[(i, k)])).collect())
+}
+
+fn mat_rows<const D: usize>(
+    a: &PyReadonlyArray3<'_, f64>,
+    n: usize,
+    what: &str,
+) -> PyResult<Vec<SMatrix<f64, D, D>>> {
+    let a = a.as_array();
+    if a.shape() != [n, D, D] {
+        return Err(PyValueError::new_err(format!(
+            "{what}: shape {:?}, expected ({n}, {D}, {D})",
+            a.shape()
+        )));
+    }
+    Ok((0..n)
+        .map(|i| SMatrix::from_fn(|r, c| a[(i, r, c)]))
+        .collect())
+}
+
+/// `(grid_mass, grid_momentum)`.
+type GridArrays<'py> = (
+    Bound<'py, numpy::PyArray1<f64>>,
+    Bound<'py, numpy::PyArray2<f64>>,
+);
+/// `(v, B)` per particle.
+type ParticleArrays<'py> = (
+    Bound<'py, numpy::PyArray2<f64>>,
+    Bound<'py, numpy::PyArray3<f64>>,
+);
+
+fn kernel_err(e: femp_kernels::KernelError) -> PyErr {
+    PyValueError::new_err(e.to_string())
+}
+
+impl PyTransfer {
+    fn p2g_d<'py, const D: usize>(
+        py: Python<'py>,
+        st: &Stencils<D>,
+        mass: &PyReadonlyArray1<'py, f64>,
+        v: &PyReadonlyArray2<'py, f64>,
+        b: Option<&PyReadonlyArray3<'py, f64>>,
+    ) -> PyResult<GridArrays<'py>> {
+        let n = st.num_particles();
+        let m = mass.as_array().to_vec();
+        let v = vec_rows::<D>(v, n, "v")?;
+        let mut gm = vec![0.0; st.num_nodes()];
+        let mut gp = vec![SVector::<f64, D>::zeros(); st.num_nodes()];
+        match b {
+            Some(b) => {
+                let b = mat_rows::<D>(b, n, "B")?;
+                femp_kernels::transfer::p2g_apic(st, &m, &v, &b, &mut gm, &mut gp)
+            }
+            None => femp_kernels::transfer::p2g_pic(st, &m, &v, &mut gm, &mut gp),
+        }
+        .map_err(kernel_err)?;
+        Ok((
+            Array1::from(gm).into_pyarray(py),
+            vectors(&gp).into_pyarray(py),
+        ))
+    }
+
+    fn g2p_d<'py, const D: usize>(
+        py: Python<'py>,
+        st: &Stencils<D>,
+        grid_v: &PyReadonlyArray2<'py, f64>,
+    ) -> PyResult<ParticleArrays<'py>> {
+        let n = st.num_particles();
+        let gv = vec_rows::<D>(grid_v, st.num_nodes(), "grid_velocity")?;
+        let mut v = vec![SVector::<f64, D>::zeros(); n];
+        let mut b = vec![SMatrix::<f64, D, D>::zeros(); n];
+        femp_kernels::transfer::g2p_apic(st, &gv, None, &mut v, &mut b).map_err(kernel_err)?;
+        Ok((vectors(&v).into_pyarray(py), matrices(&b).into_pyarray(py)))
+    }
+}
+
+#[pymethods]
+impl PyTransfer {
+    /// Stencils of the particles `x` (n×D, D = 2 or 3) on the grid of spacing `h` with a node
+    /// at `origin` (default the coordinate origin); `kernel` is `"quadratic"` (3 nodes per axis,
+    /// BFEMP) or `"quadratic4"` (the augury paper's 4-node variant).
+    #[new]
+    #[pyo3(signature = (x, h, origin = None, kernel = "quadratic"))]
+    fn new(
+        x: PyReadonlyArray2<'_, f64>,
+        h: f64,
+        origin: Option<PyReadonlyArray1<'_, f64>>,
+        kernel: &str,
+    ) -> PyResult<Self> {
+        let kernel = match kernel {
+            "quadratic" => Kernel::Quadratic,
+            "quadratic4" => Kernel::Quadratic4,
+            k => {
+                return Err(PyValueError::new_err(format!(
+                    "kernel = {k:?}: expected \"quadratic\" or \"quadratic4\""
+                )));
+            }
+        };
+        let n = x.as_array().nrows();
+        let stencils = match x.as_array().ncols() {
+            2 => {
+                let o = origin
+                    .as_ref()
+                    .map_or(Ok(SVector::zeros()), |o| point::<2>(o, "origin"))?;
+                let g = Grid::<2>::new(h, o, kernel).map_err(kernel_err)?;
+                AnyStencils::D2(Box::new(
+                    g.stencils(&vec_rows::<2>(&x, n, "x")?)
+                        .map_err(kernel_err)?,
+                ))
+            }
+            3 => {
+                let o = origin
+                    .as_ref()
+                    .map_or(Ok(SVector::zeros()), |o| point::<3>(o, "origin"))?;
+                let g = Grid::<3>::new(h, o, kernel).map_err(kernel_err)?;
+                AnyStencils::D3(Box::new(
+                    g.stencils(&vec_rows::<3>(&x, n, "x")?)
+                        .map_err(kernel_err)?,
+                ))
+            }
+            c => {
+                return Err(PyValueError::new_err(format!(
+                    "x: {c} columns, expected 2 or 3"
+                )));
+            }
+        };
+        Ok(Self {
+            stencils,
+            particles: n,
+        })
+    }
+
+    /// Number of particles.
+    #[getter]
+    fn num_particles(&self) -> usize {
+        self.particles
+    }
+
+    /// Integer indices of the grid nodes the particles touch (nodes × D), in the order of every
+    /// grid array here.
+    #[getter]
+    fn nodes<'py>(&self, py: Python<'py>) -> Bound<'py, numpy::PyArray2<i64>> {
+        fn idx<const D: usize>(st: &Stencils<D>) -> Array2<i64> {
+            let n = st.node_indices();
+            Array2::from_shape_fn((n.len(), D), |(i, a)| n[i][a])
+        }
+        match &self.stencils {
+            AnyStencils::D2(s) => idx(s),
+            AnyStencils::D3(s) => idx(s),
+        }
+        .into_pyarray(py)
+    }
+
+    /// Positions of the nodes (nodes × D).
+    #[getter]
+    fn node_positions<'py>(&self, py: Python<'py>) -> Bound<'py, numpy::PyArray2<f64>> {
+        fn pos<const D: usize>(st: &Stencils<D>) -> Array2<f64> {
+            Array2::from_shape_fn((st.num_nodes(), D), |(i, a)| st.node_position(i)[a])
+        }
+        match &self.stencils {
+            AnyStencils::D2(s) => pos(s),
+            AnyStencils::D3(s) => pos(s),
+        }
+        .into_pyarray(py)
+    }
+
+    /// Particles to grid: `(grid_mass, grid_momentum)` from `mass` (n), `v` (n×D) and, for APIC,
+    /// `B` (n×D×D; PIC without it). Mass, linear and (APIC) angular momentum are conserved.
+    #[pyo3(signature = (mass, v, B = None))]
+    #[allow(non_snake_case)]
+    fn p2g<'py>(
+        &self,
+        py: Python<'py>,
+        mass: PyReadonlyArray1<'py, f64>,
+        v: PyReadonlyArray2<'py, f64>,
+        B: Option<PyReadonlyArray3<'py, f64>>,
+    ) -> PyResult<GridArrays<'py>> {
+        match &self.stencils {
+            AnyStencils::D2(s) => Self::p2g_d::<2>(py, s, &mass, &v, B.as_ref()),
+            AnyStencils::D3(s) => Self::p2g_d::<3>(py, s, &mass, &v, B.as_ref()),
+        }
+    }
+
+    /// Grid to particles (APIC): `(v, B)` from the node velocities (nodes × D).
+    fn g2p<'py>(
+        &self,
+        py: Python<'py>,
+        grid_velocity: PyReadonlyArray2<'py, f64>,
+    ) -> PyResult<ParticleArrays<'py>> {
+        match &self.stencils {
+            AnyStencils::D2(s) => Self::g2p_d::<2>(py, s, &grid_velocity),
+            AnyStencils::D3(s) => Self::g2p_d::<3>(py, s, &grid_velocity),
+        }
+    }
+}
+
+/// The `femp._femp` extension module.
+#[pymodule]
+fn _femp(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    let py = m.py();
+    m.add("__version__", env!("CARGO_PKG_VERSION"))?;
+    m.add("FempError", py.get_type::<FempError>())?;
+    m.add("SceneError", py.get_type::<SceneError>())?;
+    m.add("SimulationError", py.get_type::<SimulationError>())?;
+    m.add("OutputError", py.get_type::<OutputError>())?;
+    m.add_class::<PyScene>()?;
+    m.add_class::<PyWorld>()?;
+    m.add_class::<PyTransfer>()?;
+    m.add_function(wrap_pyfunction!(run, m)?)?;
+    m.add_function(wrap_pyfunction!(point_edge_potential, m)?)?;
+    m.add_function(wrap_pyfunction!(point_triangle_potential, m)?)?;
+    m.add_function(wrap_pyfunction!(barrier, m)?)?;
+    m.add_function(wrap_pyfunction!(sq_distance, m)?)?;
+    m.add_function(wrap_pyfunction!(ccd_toi, m)?)?;
+    Ok(())
+}

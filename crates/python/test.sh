@@ -1,0 +1,28 @@
+#!/usr/bin/env bash
+# The Python package's tests: build the extension (maturin, release) into a private virtual
+# environment under target/ and run pytest on crates/python/tests. Needs Python ≥ 3.9 with the
+# venv module (PYTHON=… to choose the interpreter) and PyPI for the first run's packages.
+set -euo pipefail
+cd "$(dirname "$0")/../.."
+
+py=${PYTHON:-python3}
+venv=target/python-venv
+if ! command -v "$py" >/dev/null 2>&1; then
+    echo "crates/python/test.sh: $py not found: install Python ≥ 3.9 (or set PYTHON=…)" >&2
+    exit 1
+fi
+if ! "$py" -c 'import sys; sys.exit(sys.version_info < (3, 9))'; then
+    echo "crates/python/test.sh: $py is $("$py" --version 2>&1); femp's Python package needs ≥ 3.9" >&2
+    exit 1
+fi
+if [ ! -x "$venv/bin/python" ]; then
+    "$py" -m venv "$venv" || {
+        echo "crates/python/test.sh: '$py -m venv' failed (on Debian: apt install python3-venv)" >&2
+        exit 1
+    }
+fi
+"$venv/bin/python" -m pip install --quiet --disable-pip-version-check \
+    -r crates/python/requirements-test.txt
+VIRTUAL_ENV="$PWD/$venv" "$venv/bin/maturin" develop --release --quiet \
+    --manifest-path crates/python/Cargo.toml
+"$venv/bin/python" -m pytest -q crates/python/tests

@@ -1,0 +1,77 @@
+"""Runs from Python write what `femp run` writes and return the same numbers."""
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import textwrap
+import time
+
+import numpy as np
+import pytest
+
+import femp
+
+
+def test_run_returns_the_metrics_and_summary_it_writes(fixtures, tmp_path):
+    s = femp.Scene.load(os.path.join(fixtures, "block_on_plate.json"))
+    out = tmp_path / "plate"
+    r = femp.run(s, out, max_steps=20)
+    assert r.summary["status"] == "completed" and r.summary["steps"] == 20
+    assert r.summary == json.loads((out / "summary.json").read_text())
+    assert (out / "scene_copy.json").exists() and list((out / "frames").iterdir())
+    csv = femp.read_metrics(out)
+    assert list(csv) == list(r.metrics)
+    assert len(r.metrics["step"]) == 21  # the initial state, then one row per step
+    for k in r.metrics:
+        np.testing.assert_allclose(r.metrics[k], csv[k], rtol=1e-12, atol=0, err_msg=k)
+    # Gravity: the momentum changes by m g Δt per step while the block falls freely.
+    m = femp.World(s).particles()["mass"].sum()
+    dp = np.diff(r.metrics["momentum_y"][:3])
+    np.testing.assert_allclose(dp, -9.81 * m * r.metrics["dt"][0], rtol=1e-9)
+
+
+def test_used_output_directories_are_refused_unless_overwrite(fixtures, tmp_path):
+    s = femp.Scene.load(os.path.join(fixtures, "block_on_plate.json"))
+    femp.run(s, tmp_path, max_steps=2, frames=False)
+    with pytest.raises(femp.OutputError, match="overwrite"):
+        femp.run(s, tmp_path, max_steps=2, frames=False)
+    r = femp.run(s, tmp_path, max_steps=3, frames=False, overwrite=True)
+    assert r.summary["steps"] == 3
+
+
+def test_ctrl_c_stops_a_run_and_keeps_its_outputs(tmp_path, fixtures):
+    """SIGINT to a Python process inside femp.run: KeyboardInterrupt within a step or so, and
+    summary.json says `interrupted` with every metrics row whole."""
+    out = tmp_path / "out"
+    script = textwrap.dedent(f"""
+        import femp, sys
+        s = femp.Scene.load({os.path.join(fixtures, "colliding_rings.json")!r})
+        try:
+            femp.run(s, {str(out)!r}, frames=False)
+        except KeyboardInterrupt:
+            print("KeyboardInterrupt", flush=True)
+            sys.exit(7)
+    """)
+    p = subprocess.Popen([sys.executable, "-c", script], stdout=subprocess.PIPE, text=True)
+    metrics = out / "metrics.csv"
+    deadline = time.time() + 120
+    while time.time() < deadline:
+        if metrics.exists() and metrics.read_text().count("\n") >= 3:
+            break
+        time.sleep(0.05)
+    else:
+        p.kill()
+        pytest.fail("the run wrote no metrics in 120 s")
+    clock = time.time()
+    p.send_signal(signal.SIGINT)
+    stdout, _ = p.communicate(timeout=60)
+    assert p.returncode == 7 and "KeyboardInterrupt" in stdout
+    assert time.time() - clock < 30
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["status"] == "interrupted", summary["status"]
+    lines = metrics.read_text().splitlines()
+    width = len(lines[0].split(","))
+    assert all(len(line.split(",")) == width for line in lines[1:])
+    assert summary["steps"] == len(lines) - 2
