@@ -72,35 +72,50 @@ fn contact_err(e: ContactError) -> PyErr {
     PyValueError::new_err(e.to_string())
 }
 
-/// Run `f` on a worker thread with the GIL released, polling the calling thread for signals
-/// every 20 ms; a signal (Ctrl-C) sets the interrupt flag `f` was given, waits for `f` to stop
-/// and re-raises the signal's exception.
+/// Run `f` on a worker thread with the GIL released, while the calling thread waits for its
+/// result and, every 20 ms without one, polls for Python signals: a signal (Ctrl-C) sets the
+/// interrupt flag `f` was given, waits for `f` to stop and re-raises the signal's exception.
+/// The result is taken as soon as it is ready (no polling delay on short calls).
 fn interruptible<T: Send>(
     py: Python<'_>,
     f: impl FnOnce(Arc<AtomicBool>) -> T + Send,
 ) -> PyResult<T> {
+    use std::sync::mpsc::{RecvTimeoutError, channel};
     let flag = Arc::new(AtomicBool::new(false));
     std::thread::scope(|s| {
+        let (tx, rx) = channel();
         let worker = {
             let flag = flag.clone();
-            s.spawn(move || f(flag))
+            s.spawn(move || {
+                // The receiver outlives the worker (the scope joins it): a send cannot fail.
+                let _ = tx.send(f(flag));
+            })
         };
+        let mut rx = rx;
         loop {
-            let done = py.detach(|| {
-                std::thread::sleep(Duration::from_millis(20));
-                worker.is_finished()
-            });
-            if done {
-                break;
-            }
-            if let Err(e) = py.check_signals() {
-                flag.store(true, Ordering::SeqCst);
-                let _ = py.detach(|| worker.join());
-                return Err(e);
+            // The receiver is moved into the GIL-free closure and back (it is Send, not Sync).
+            let (got, back) = py.detach(move || (rx.recv_timeout(Duration::from_millis(20)), rx));
+            rx = back;
+            match got {
+                Ok(v) => {
+                    let _ = py.detach(|| worker.join());
+                    return Ok(v);
+                }
+                Err(RecvTimeoutError::Timeout) => {
+                    if let Err(e) = py.check_signals() {
+                        flag.store(true, Ordering::SeqCst);
+                        let _ = py.detach(|| worker.join());
+                        return Err(e);
+                    }
+                }
+                Err(RecvTimeoutError::Disconnected) => {
+                    let _ = py.detach(|| worker.join());
+                    return Err(SimulationError::new_err(
+                        "femp panicked (a bug: please report it)",
+                    ));
+                }
             }
         }
-        py.detach(|| worker.join())
-            .map_err(|_| SimulationError::new_err("femp panicked (a bug: please report it)"))
     })
 }
 

@@ -84,13 +84,55 @@ enum Command {
         limits: LimitArgs,
     },
     /// Validate a scene without running it (format, values, size, initial overlaps) and print
-    /// what it will cost (particles, grid nodes, unknowns, memory, steps, frame output).
+    /// what it will cost (particles, grid nodes, unknowns, memory, steps, frame output; with
+    /// `--trial N`, the wall time extrapolated from its first N steps).
     Check {
         /// Scene file.
         scene: PathBuf,
+        /// Also run the first N steps (nothing is written) and extrapolate the wall time of
+        /// the whole run from them.
+        #[arg(long, value_name = "N", default_value_t = 0)]
+        trial: usize,
         #[command(flatten)]
         limits: LimitArgs,
     },
+}
+
+/// `femp check --trial N`: run the first `n` steps of `w` and extrapolate the whole run's wall
+/// time from them (empty for `n = 0`).
+fn trial_steps<const D: usize>(w: &mut femp::World<D>, n: usize) -> anyhow::Result<String> {
+    if n == 0 {
+        return Ok(String::new());
+    }
+    let total = femp::run::step_count(w.scene.spec.time.duration, w.dt);
+    let n = n.min(total);
+    let (mut newton, mut contact) = (0usize, 0usize);
+    let start = std::time::Instant::now();
+    for k in 0..n {
+        let r = w
+            .step()
+            .map_err(|e| anyhow::anyhow!("trial step {} of {n}: {e}", k + 1))?;
+        newton += r.newton_iterations;
+        contact += usize::from(r.contact_terms > 0);
+    }
+    let elapsed = start.elapsed().as_secs_f64();
+    let per = elapsed / n as f64;
+    let mut s = format!(
+        "\n  trial: {n} steps in {elapsed:.2} s ({per:.3} s per step, {:.1} Newton iterations per \
+         step, contact in {contact}); all {total} steps at that rate: about {}",
+        newton as f64 / n as f64,
+        femp::run::human_seconds(per * total as f64)
+    );
+    if n < total && w.augury.is_none() {
+        s += if contact == 0 {
+            " — a lower bound: no trial step had contact, and steps in contact cost more \
+             (often 10× in 3D MPM)"
+        } else {
+            " — a guide: steps in contact cost more than steps without, so the rate depends \
+             on how much of the run is in contact"
+        };
+    }
+    Ok(s)
 }
 
 fn parse_size(s: &str) -> Result<(u32, u32), String> {
@@ -202,7 +244,11 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                 out.display()
             );
         }
-        Command::Check { scene, limits } => {
+        Command::Check {
+            scene,
+            trial,
+            limits,
+        } => {
             let mut s = femp::scene::load(&scene)?;
             limits.apply(&mut s)?;
             let estimate = femp::scene::size::estimate(&s)?;
@@ -242,8 +288,14 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                 s
             }
             let what = match dim {
-                2 => describe(&femp::World::<2>::build(s)?),
-                _ => describe(&femp::World::<3>::build(s)?),
+                2 => {
+                    let mut w = femp::World::<2>::build(s)?;
+                    describe(&w) + &trial_steps(&mut w, trial)?
+                }
+                _ => {
+                    let mut w = femp::World::<3>::build(s)?;
+                    describe(&w) + &trial_steps(&mut w, trial)?
+                }
             };
             // A closed standard output (`femp check … | true`) is not an error of the scene.
             use std::io::Write as _;

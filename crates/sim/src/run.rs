@@ -352,14 +352,20 @@ fn eta(elapsed: f64, done: usize, total: usize) -> String {
         return String::new();
     }
     let left = elapsed / done as f64 * (total - done) as f64;
-    let human = if left < 120.0 {
-        format!("{left:.0} s")
-    } else if left < 7200.0 {
-        format!("{:.0} min", left / 60.0)
+    format!(", about {} left", human_seconds(left))
+}
+
+/// A duration for people: seconds (tenths below 10 s) below 2 min, minutes below 2 h, hours above.
+pub fn human_seconds(s: f64) -> String {
+    if s < 10.0 {
+        format!("{s:.1} s")
+    } else if s < 120.0 {
+        format!("{s:.0} s")
+    } else if s < 7200.0 {
+        format!("{:.0} min", s / 60.0)
     } else {
-        format!("{:.1} h", left / 3600.0)
-    };
-    format!(", about {human} left")
+        format!("{:.1} h", s / 3600.0)
+    }
 }
 
 /// Copy a step's solver report into its metrics row and add it to the summary's totals.

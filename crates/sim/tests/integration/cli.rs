@@ -64,6 +64,57 @@ fn check_accepts_a_valid_scene_and_reports_its_size() {
     );
 }
 
+/// `check --trial N` runs N steps, writes nothing, and extrapolates to the whole run (20 steps
+/// here); it says when the trial had no contact (a lower bound), and a trial step that fails is
+/// an error naming the step.
+#[test]
+fn check_trial_extrapolates_the_wall_time_from_the_first_steps() {
+    let dir = tempfile::tempdir().unwrap();
+    let p = scene(dir.path(), "ok.json", &falling_block(50));
+    let out = femp(&["check", "--trial", "3", &p]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(text.contains("trial: 3 steps in"), "{text}");
+    assert!(text.contains("all 20 steps at that rate: about"), "{text}");
+    // The block starts 0.05 m above the plate at 1 m/s: no contact in the first 3 steps.
+    assert!(
+        text.contains("contact in 0") && text.contains("lower bound"),
+        "{text}"
+    );
+    let entries: Vec<_> = std::fs::read_dir(dir.path()).unwrap().collect();
+    assert_eq!(entries.len(), 1, "check wrote files");
+    // All 20 steps: the block lands, so contact is seen and no lower-bound note.
+    let text = check_ok_args(&["check", "--trial", "1000", &p]);
+    assert!(text.contains("trial: 20 steps in"), "{text}");
+    assert!(
+        !text.contains("lower bound") && !text.contains("contact in 0"),
+        "{text}"
+    );
+    // A Newton limit of 1 fails the first contact step.
+    let bad = scene(dir.path(), "bad.json", &falling_block(1));
+    let out = femp(&["check", "--trial", "20", &bad]);
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains("trial step") && !err.contains("panicked"),
+        "{err}"
+    );
+}
+
+fn check_ok_args(args: &[&str]) -> String {
+    let out = femp(args);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    String::from_utf8_lossy(&out.stdout).into_owned()
+}
+
 /// For augury scenes `check` reports Δt and the look-ahead τ against the explicit stability
 /// estimate (τ sets how strongly the correction acts, `docs/augury.md`).
 #[test]
