@@ -562,29 +562,28 @@ fn point_edge_potential<'py>(
 ) -> PyResult<Option<Bound<'py, PyDict>>> {
     let b = LogBarrier::new(dhat, kappa).map_err(contact_err)?;
     let h = hessian_kind(hessian)?;
+    fn edge<'py, const D: usize>(
+        py: Python<'py>,
+        b: &LogBarrier,
+        weight: f64,
+        pts: [&PyReadonlyArray1<'py, f64>; 3],
+        h: Hessian,
+    ) -> PyResult<Option<Bound<'py, PyDict>>> {
+        single::point_edge::<D>(
+            b,
+            weight,
+            &point(pts[0], "p")?,
+            &point(pts[1], "e0")?,
+            &point(pts[2], "e1")?,
+            h,
+        )
+        .map_err(contact_err)?
+        .map(|c| contact_dict(py, &c))
+        .transpose()
+    }
     match p.as_array().len() {
-        2 => single::point_edge::<2>(
-            &b,
-            weight,
-            &point(&p, "p")?,
-            &point(&e0, "e0")?,
-            &point(&e1, "e1")?,
-            h,
-        )
-        .map_err(contact_err)?
-        .map(|c| contact_dict(py, &c))
-        .transpose(),
-        3 => single::point_edge::<3>(
-            &b,
-            weight,
-            &point(&p, "p")?,
-            &point(&e0, "e0")?,
-            &point(&e1, "e1")?,
-            h,
-        )
-        .map_err(contact_err)?
-        .map(|c| contact_dict(py, &c))
-        .transpose(),
+        2 => edge::<2>(py, &b, weight, [&p, &e0, &e1], h),
+        3 => edge::<3>(py, &b, weight, [&p, &e0, &e1], h),
         n => Err(PyValueError::new_err(format!(
             "p: expected 2 or 3 coordinates, got {n}"
         ))),

@@ -7,18 +7,20 @@ use femp_contact::distance::point_point;
 use femp_contact::distance::point_triangle::{self, PointTriangleRegion};
 use nalgebra::{DMatrix, DVector, SMatrix, SVector, Vector3};
 
-fn pack<const D: usize>(pts: &[SVector<f64, D>]) -> DVector<f64> {
+pub(crate) fn pack<const D: usize>(pts: &[SVector<f64, D>]) -> DVector<f64> {
     DVector::from_iterator(pts.len() * D, pts.iter().flat_map(|p| p.iter().copied()))
 }
 
-fn unpack<const D: usize>(x: &DVector<f64>) -> Vec<SVector<f64, D>> {
+pub(crate) fn unpack<const D: usize>(x: &DVector<f64>) -> Vec<SVector<f64, D>> {
     x.as_slice()
         .chunks(D)
         .map(SVector::from_column_slice)
         .collect()
 }
 
-fn dense<const D: usize, const N: usize>(h: &[[SMatrix<f64, D, D>; N]; N]) -> DMatrix<f64> {
+pub(crate) fn dense<const D: usize, const N: usize>(
+    h: &[[SMatrix<f64, D, D>; N]; N],
+) -> DMatrix<f64> {
     DMatrix::from_fn(N * D, N * D, |r, c| h[r / D][c / D][(r % D, c % D)])
 }
 

@@ -5,27 +5,14 @@
 
 use femp_contact::single::{self, Hessian};
 use femp_contact::{ContactError, ContactPotential, ContactTerm, Feature, LogBarrier};
-use nalgebra::{DMatrix, DVector, SMatrix, SVector, Vector2, Vector3};
+use nalgebra::{SVector, Vector2, Vector3};
+
+use crate::derivatives::{dense, pack, unpack};
 
 const DHAT: f64 = 0.2;
 
 fn barrier() -> LogBarrier {
     LogBarrier::new(DHAT, 3.0e3).unwrap()
-}
-
-fn pack<const D: usize>(pts: &[SVector<f64, D>]) -> DVector<f64> {
-    DVector::from_iterator(pts.len() * D, pts.iter().flat_map(|p| p.iter().copied()))
-}
-
-fn unpack<const D: usize>(x: &DVector<f64>) -> Vec<SVector<f64, D>> {
-    x.as_slice()
-        .chunks(D)
-        .map(SVector::from_column_slice)
-        .collect()
-}
-
-fn dense<const D: usize, const N: usize>(h: &[[SMatrix<f64, D, D>; N]; N]) -> DMatrix<f64> {
-    DMatrix::from_fn(N * D, N * D, |r, c| h[r / D][c / D][(r % D, c % D)])
 }
 
 /// Central differences of a contact function `f` over its stencil at `x`.

@@ -81,6 +81,18 @@ def _check_closed(triangles: np.ndarray, where: str) -> None:
                          "edges shared by more than two triangles)")
 
 
+def _cells(gmsh, dim: int, none: str):
+    """The linear simplices Gmsh made of dimension ``dim`` (node tags, cells × (dim+1)) and their
+    corner coordinates (cells × (dim+1) × dim); ``ValueError(none)`` if there are none."""
+    _, _, nodes = gmsh.model.mesh.getElements(dim)
+    if not nodes:
+        raise ValueError(none)
+    cells = np.asarray(nodes[0]).reshape(-1, dim + 1)
+    tags, coords, _ = gmsh.model.mesh.getNodes()
+    xyz = dict(zip(tags, np.asarray(coords).reshape(-1, 3)[:, :dim]))
+    return cells, np.array([[xyz[t] for t in cell] for cell in cells])
+
+
 def _write(gmsh, out: PathLike, version: float) -> None:
     gmsh.option.setNumber("Mesh.MshFileVersion", version)
     gmsh.option.setNumber("Mesh.Binary", 0)
@@ -133,14 +145,8 @@ def tetrahedralize(surface: Union[PathLike, tuple], out: PathLike, size: Optiona
         gmsh.model.geo.synchronize()
         gmsh.model.mesh.generate(3)
         gmsh.model.mesh.optimize("Netgen" if size is not None else "")
-        _, _, nodes = gmsh.model.mesh.getElements(3)
-        if not nodes:
-            raise ValueError(f"{where}: Gmsh made no tetrahedra")
+        tets, p = _cells(gmsh, 3, f"{where}: Gmsh made no tetrahedra")
         _write(gmsh, out, version)
-        tets = np.asarray(nodes[0]).reshape(-1, 4)
-        tags, coords, _ = gmsh.model.mesh.getNodes()
-        xyz = dict(zip(tags, np.asarray(coords).reshape(-1, 3)))
-        p = np.array([[xyz[t] for t in tet] for tet in tets])
         vol = np.abs(np.einsum("ij,ij->i", p[:, 1] - p[:, 0],
                                np.cross(p[:, 2] - p[:, 0], p[:, 3] - p[:, 0]))).sum() / 6.0
         return {"vertices": len(np.unique(tets)), "tetrahedra": len(tets), "volume": float(vol)}
@@ -183,14 +189,8 @@ def triangulate(outline: Union[PathLike, np.ndarray, Sequence], out: PathLike,
         gmsh.model.geo.addPlaneSurface([loop])
         gmsh.model.geo.synchronize()
         gmsh.model.mesh.generate(2)
-        _, _, nodes = gmsh.model.mesh.getElements(2)
-        if not nodes:
-            raise ValueError(f"{where}: Gmsh made no triangles (a self-intersecting outline?)")
+        tris, p = _cells(gmsh, 2, f"{where}: Gmsh made no triangles (a self-intersecting outline?)")
         _write(gmsh, out, version)
-        tris = np.asarray(nodes[0]).reshape(-1, 3)
-        tags, coords, _ = gmsh.model.mesh.getNodes()
-        xyz = dict(zip(tags, np.asarray(coords).reshape(-1, 3)))
-        p = np.array([[xyz[t][:2] for t in tri] for tri in tris])
         e1, e2 = p[:, 1] - p[:, 0], p[:, 2] - p[:, 0]
         area = np.abs(e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0]).sum() / 2.0
         return {"vertices": len(np.unique(tris)), "triangles": len(tris), "area": float(area)}

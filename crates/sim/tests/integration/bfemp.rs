@@ -344,6 +344,25 @@ fn slope_3d_sticks_and_slides() {
     check_slope(3);
 }
 
+/// A 2D MPM block thrown down and sideways onto a fixed FEM plate with friction μ = 0.5, for
+/// `duration` s, with the given `solver` fields.
+fn sliding_block_2d(duration: f64, solver: &str) -> String {
+    format!(
+        r#"{{ "dimension": 2, "gravity": [0, -9.81],
+          "time": {{ "dt": 0.01, "duration": {duration} }},
+          "solver": {{ {solver} }},
+          "mpm": {{ "grid_spacing": 0.05 }},
+          "bodies": [
+            {{ "kind": "mpm", "name": "block", "shape": {{ "box": {{ "min": [-0.2, 0.004], "max": [0.2, 0.204] }} }},
+              "material": {{ "E": 1e5, "nu": 0.3, "rho": 1000 }}, "velocity": [1.0, -0.5] }},
+            {{ "kind": "fem", "name": "plate",
+              "mesh": {{ "rectangle": {{ "min": [-2, -0.1], "max": [2, 0], "cells": [40, 1] }} }},
+              "material": {{ "E": 1e7, "nu": 0.3, "rho": 1000 }},
+              "prescribed": [ {{ "vertices": "all", "motion": [] }} ] }} ],
+          "contact": {{ "dhat": 0.005, "kappa": 1e5, "friction": 0.5 }} }}"#
+    )
+}
+
 /// The contact forces in `metrics.csv` are the forces that change the bodies' momenta: with
 /// backward Euler a body's momentum changes over a step by `Δt (F_contact + M g)` (the elastic
 /// forces cancel, the transfers conserve momentum), so the reported force is checked against
@@ -354,18 +373,7 @@ fn contact_forces_in_the_metrics_are_the_impulse_of_every_step() {
     for (d, json) in [
         (
             2,
-            r#"{ "dimension": 2, "gravity": [0, -9.81],
-              "time": { "dt": 0.01, "duration": 0.3 },
-              "solver": { "tolerance": 1e-9, "max_friction_iterations": 50 },
-              "mpm": { "grid_spacing": 0.05 },
-              "bodies": [
-                { "kind": "mpm", "name": "block", "shape": { "box": { "min": [-0.2, 0.004], "max": [0.2, 0.204] } },
-                  "material": { "E": 1e5, "nu": 0.3, "rho": 1000 }, "velocity": [1.0, -0.5] },
-                { "kind": "fem", "name": "plate",
-                  "mesh": { "rectangle": { "min": [-2, -0.1], "max": [2, 0], "cells": [40, 1] } },
-                  "material": { "E": 1e7, "nu": 0.3, "rho": 1000 },
-                  "prescribed": [ { "vertices": "all", "motion": [] } ] } ],
-              "contact": { "dhat": 0.005, "kappa": 1e5, "friction": 0.5 } }"#,
+            sliding_block_2d(0.3, r#""tolerance": 1e-9, "max_friction_iterations": 50"#),
         ),
         (
             3,
@@ -380,9 +388,11 @@ fn contact_forces_in_the_metrics_are_the_impulse_of_every_step() {
                   "mesh": { "cuboid": { "min": [-1, -0.1, -1], "max": [1, 0, 1], "cells": [4, 1, 4] } },
                   "material": { "E": 1e7, "nu": 0.3, "rho": 1000 },
                   "prescribed": [ { "vertices": "all", "motion": [] } ] } ],
-              "contact": { "dhat": 0.005, "kappa": 1e5, "friction": 0.5 } }"#,
+              "contact": { "dhat": 0.005, "kappa": 1e5, "friction": 0.5 } }"#
+                .to_string(),
         ),
     ] {
+        let json = &json;
         let r = run_scene(json);
         let (dt, g) = (0.01, [0.0, -9.81, 0.0]);
         // The plate is prescribed at rest: the momentum in the metrics is the block's.
@@ -448,18 +458,7 @@ fn contact_forces_in_the_metrics_are_the_impulse_of_every_step() {
 /// to the plate's.
 #[test]
 fn per_point_contact_forces_add_up_to_the_body_forces() {
-    let json = r#"{ "dimension": 2, "gravity": [0, -9.81],
-      "time": { "dt": 0.01, "duration": 0.1 },
-      "solver": { "tolerance": 1e-7 },
-      "mpm": { "grid_spacing": 0.05 },
-      "bodies": [
-        { "kind": "mpm", "name": "block", "shape": { "box": { "min": [-0.2, 0.004], "max": [0.2, 0.204] } },
-          "material": { "E": 1e5, "nu": 0.3, "rho": 1000 }, "velocity": [1.0, -0.5] },
-        { "kind": "fem", "name": "plate",
-          "mesh": { "rectangle": { "min": [-2, -0.1], "max": [2, 0], "cells": [40, 1] } },
-          "material": { "E": 1e7, "nu": 0.3, "rho": 1000 },
-          "prescribed": [ { "vertices": "all", "motion": [] } ] } ],
-      "contact": { "dhat": 0.005, "kappa": 1e5, "friction": 0.5 } }"#;
+    let json = &sliding_block_2d(0.1, r#""tolerance": 1e-7"#);
     let s = scene::parse(json, "p.json", ".".into(), "p").unwrap();
     let dir = tempfile::tempdir().unwrap();
     let mut checked = 0;
