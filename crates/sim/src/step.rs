@@ -41,32 +41,6 @@ pub struct StepReport {
     pub pair_forces: Vec<[[f64; 3]; 2]>,
 }
 
-fn add_stats(acc: &mut SolveStats, s: &SolveStats) {
-    acc.iterations += s.iterations;
-    acc.backtracks += s.backtracks;
-    acc.limited_by_ccd += s.limited_by_ccd;
-    acc.limited_by_det_f += s.limited_by_det_f;
-    acc.limited_by_other += s.limited_by_other;
-    acc.final_residual = s.final_residual;
-    acc.final_energy = s.final_energy;
-    acc.regularizations += s.regularizations;
-    acc.roundoff_stops += s.roundoff_stops;
-    acc.gradient_steps += s.gradient_steps;
-    acc.exact_iterations += s.exact_iterations;
-    acc.reused_hessians += s.reused_hessians;
-    acc.exact_rejections += s.exact_rejections;
-    acc.symbolic_analyses += s.symbolic_analyses;
-    acc.pcg_iterations += s.pcg_iterations;
-    acc.pcg_fallbacks += s.pcg_fallbacks;
-    acc.pcg_tightened += s.pcg_tightened;
-    acc.pcg_s += s.pcg_s;
-    acc.assembly_s += s.assembly_s;
-    acc.symbolic_s += s.symbolic_s;
-    acc.numeric_s += s.numeric_s;
-    acc.solve_s += s.solve_s;
-    acc.line_search_s += s.line_search_s;
-}
-
 /// The unknowns of one step and what they start from (see [`World::setup`]).
 pub(crate) struct StepSetup<const D: usize> {
     pub(crate) n_grid: usize,
@@ -232,7 +206,7 @@ impl<const D: usize> World<D> {
                     },
                 })?;
             report.newton_iterations += stats.iterations;
-            add_stats(&mut report.stats, &stats);
+            report.stats += &stats;
             if !any_friction {
                 break;
             }

@@ -273,6 +273,36 @@ pub struct SolveStats {
     pub line_search_s: f64,
 }
 
+/// Statistics of consecutive solves (the friction loop's re-solves within a step, a run's
+/// steps): counters and times add up; `final_residual` and `final_energy` are the last solve's.
+impl std::ops::AddAssign<&SolveStats> for SolveStats {
+    fn add_assign(&mut self, s: &SolveStats) {
+        self.iterations += s.iterations;
+        self.backtracks += s.backtracks;
+        self.limited_by_ccd += s.limited_by_ccd;
+        self.limited_by_det_f += s.limited_by_det_f;
+        self.limited_by_other += s.limited_by_other;
+        self.final_residual = s.final_residual;
+        self.final_energy = s.final_energy;
+        self.regularizations += s.regularizations;
+        self.roundoff_stops += s.roundoff_stops;
+        self.gradient_steps += s.gradient_steps;
+        self.exact_iterations += s.exact_iterations;
+        self.reused_hessians += s.reused_hessians;
+        self.exact_rejections += s.exact_rejections;
+        self.symbolic_analyses += s.symbolic_analyses;
+        self.pcg_iterations += s.pcg_iterations;
+        self.pcg_fallbacks += s.pcg_fallbacks;
+        self.pcg_tightened += s.pcg_tightened;
+        self.pcg_s += s.pcg_s;
+        self.assembly_s += s.assembly_s;
+        self.symbolic_s += s.symbolic_s;
+        self.numeric_s += s.numeric_s;
+        self.solve_s += s.solve_s;
+        self.line_search_s += s.line_search_s;
+    }
+}
+
 /// A projected-Newton solver. Keep it across solves: the symbolic factorisation and all
 /// buffers are reused while the Hessian's pattern is unchanged.
 pub struct Newton {

@@ -1542,3 +1542,39 @@ fn cholesky_gives_the_same_bits_on_any_number_of_threads() {
     // The check can fail: split by the pool's size, the bits change.
     assert_ne!(bits(&on(2, Threads::Rayon)), bits(&on(3, Threads::Rayon)));
 }
+
+/// Statistics of consecutive solves add up field by field (the last solve's residual and energy
+/// are kept). Every field is named, so a new one must be added here — and to `AddAssign`.
+#[test]
+fn solve_statistics_add_up() {
+    let stats = |k: usize| femp_solver::SolveStats {
+        iterations: k,
+        backtracks: k,
+        limited_by_ccd: k,
+        limited_by_det_f: k,
+        limited_by_other: k,
+        final_residual: k as f64,
+        final_energy: k as f64,
+        regularizations: k,
+        exact_iterations: k,
+        reused_hessians: k,
+        exact_rejections: k,
+        roundoff_stops: k,
+        gradient_steps: k,
+        symbolic_analyses: k,
+        pcg_iterations: k,
+        pcg_fallbacks: k,
+        pcg_tightened: k,
+        pcg_s: k as f64,
+        assembly_s: k as f64,
+        symbolic_s: k as f64,
+        numeric_s: k as f64,
+        solve_s: k as f64,
+        line_search_s: k as f64,
+    };
+    let mut acc = stats(1);
+    acc += &stats(2);
+    let mut expect = stats(3);
+    (expect.final_residual, expect.final_energy) = (2.0, 2.0);
+    assert_eq!(acc, expect);
+}
