@@ -108,5 +108,22 @@ def test_bad_surfaces_are_refused_clearly(tmp_path):
         fm.tetrahedralize((v, f), tmp_path / "x.msh", size=-1.0)
     with pytest.raises(ValueError, match="at least 3 corners"):
         fm.triangulate([[0, 0], [1, 0]], tmp_path / "x.msh", size=0.1)
+    # Gmsh does not return on a self-intersecting outline: refused before it is called.
+    with pytest.raises(ValueError, match="crosses itself"):
+        fm.triangulate([[0, 0], [1, 1], [1, 0], [0, 1]], tmp_path / "x.msh", size=0.1)
+    with pytest.raises(ValueError, match="crosses itself"):  # a corner on another edge
+        fm.triangulate([[0, 0], [2, 0], [2, 1], [1, 0], [0, 1]], tmp_path / "x.msh", size=0.1)
+    with pytest.raises(ValueError, match="coincide"):
+        fm.triangulate([[0, 0], [1, 0], [1, 0], [0, 1]], tmp_path / "x.msh", size=0.1)
+    with pytest.raises(ValueError, match="no area"):
+        fm.triangulate([[0, 0], [1, 0], [2, 0]], tmp_path / "x.msh", size=0.1)
+    # Gmsh's own errors come back as ValueError naming the input.
+    tet = ([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]], [[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]])
+    with pytest.raises(ValueError, match="Unable to open"):
+        fm.tetrahedralize(tet, tmp_path / "no_such_dir" / "x.msh")
+    # Two interpenetrating closed surfaces: Gmsh's PLC check refuses them.
+    v, f = np.array(tet[0], float), np.array(tet[1])
+    with pytest.raises(ValueError, match="intersect"):
+        fm.tetrahedralize((np.vstack([v, v + 0.2]), np.vstack([f, f + 4])), tmp_path / "x.msh")
     assert fm.main([str(tmp_path / "missing.stl"), str(tmp_path / "x.msh")]) == 1
     assert not (tmp_path / "x.msh").exists()

@@ -16,6 +16,7 @@ patches at ``feature_angle`` first, so sharp edges stay sharp).
 from __future__ import annotations
 
 import argparse
+import contextlib
 import os
 import sys
 from typing import Optional, Sequence, Union
@@ -81,6 +82,24 @@ def _check_closed(triangles: np.ndarray, where: str) -> None:
                          "edges shared by more than two triangles)")
 
 
+@contextlib.contextmanager
+def _session(where: str, doing: str):
+    """A Gmsh session with a fresh model, finalised however it ends; Gmsh's own errors become
+    ``ValueError``s naming ``where`` and what it was ``doing``."""
+    gmsh = _gmsh()
+    gmsh.initialize(interruptible=False)
+    try:
+        gmsh.option.setNumber("General.Terminal", 0)
+        gmsh.model.add("femp")
+        yield gmsh
+    except ValueError:
+        raise
+    except Exception as e:
+        raise ValueError(f"{where}: Gmsh could not {doing}: {e}") from e
+    finally:
+        gmsh.finalize()
+
+
 def _cells(gmsh, dim: int, none: str):
     """The linear simplices Gmsh made of dimension ``dim`` (node tags, cells × (dim+1)) and their
     corner coordinates (cells × (dim+1) × dim); ``ValueError(none)`` if there are none."""
@@ -123,11 +142,7 @@ def tetrahedralize(surface: Union[PathLike, tuple], out: PathLike, size: Optiona
     _check_closed(tris, where)
     if surface_volume(points, tris) < 0:
         tris = tris[:, [0, 2, 1]]  # inward-oriented: flip
-    gmsh = _gmsh()
-    gmsh.initialize(interruptible=False)
-    try:
-        gmsh.option.setNumber("General.Terminal", 0)
-        gmsh.model.add("femp")
+    with _session(where, "tetrahedralise the surface") as gmsh:
         s = gmsh.model.addDiscreteEntity(2)
         gmsh.model.mesh.addNodes(2, s, np.arange(1, len(points) + 1), points.reshape(-1))
         gmsh.model.mesh.addElementsByType(s, 2, [], (tris + 1).reshape(-1))
@@ -150,12 +165,6 @@ def tetrahedralize(surface: Union[PathLike, tuple], out: PathLike, size: Optiona
         vol = np.abs(np.einsum("ij,ij->i", p[:, 1] - p[:, 0],
                                np.cross(p[:, 2] - p[:, 0], p[:, 3] - p[:, 0]))).sum() / 6.0
         return {"vertices": len(np.unique(tets)), "tetrahedra": len(tets), "volume": float(vol)}
-    except Exception as e:
-        if isinstance(e, ValueError):
-            raise
-        raise ValueError(f"{where}: Gmsh could not tetrahedralise the surface: {e}") from e
-    finally:
-        gmsh.finalize()
 
 
 def triangulate(outline: Union[PathLike, np.ndarray, Sequence], out: PathLike,
@@ -177,11 +186,8 @@ def triangulate(outline: Union[PathLike, np.ndarray, Sequence], out: PathLike,
         raise ValueError(f"size = {size}: must be positive and finite")
     if np.allclose(pts[0], pts[-1]):
         pts = pts[:-1]
-    gmsh = _gmsh()
-    gmsh.initialize(interruptible=False)
-    try:
-        gmsh.option.setNumber("General.Terminal", 0)
-        gmsh.model.add("femp")
+    _check_simple(pts, where)
+    with _session(where, "triangulate the outline") as gmsh:
         corners = [gmsh.model.geo.addPoint(x, y, 0.0, size) for x, y in pts]
         lines = [gmsh.model.geo.addLine(corners[i], corners[(i + 1) % len(corners)])
                  for i in range(len(corners))]
@@ -194,12 +200,41 @@ def triangulate(outline: Union[PathLike, np.ndarray, Sequence], out: PathLike,
         e1, e2 = p[:, 1] - p[:, 0], p[:, 2] - p[:, 0]
         area = np.abs(e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0]).sum() / 2.0
         return {"vertices": len(np.unique(tris)), "triangles": len(tris), "area": float(area)}
-    except Exception as e:
-        if isinstance(e, ValueError):
-            raise
-        raise ValueError(f"{where}: Gmsh could not triangulate the outline: {e}") from e
-    finally:
-        gmsh.finalize()
+
+
+def _check_simple(pts: np.ndarray, where: str) -> None:
+    """Refuse an outline that repeats a corner or crosses or touches itself (Gmsh does not
+    return on a self-intersecting outline)."""
+    n = len(pts)
+    scale = np.ptp(pts, axis=0).max()
+    if not scale > 0:
+        raise ValueError(f"{where}: the outline has no extent")
+    for i in range(n):
+        if np.linalg.norm(pts[(i + 1) % n] - pts[i]) <= 1e-12 * scale:
+            raise ValueError(f"{where}: corners {i} and {(i + 1) % n} coincide")
+
+    def orient(a, b, c):
+        v = (b[0] - a[0]) * (c[1] - a[1]) - (b[1] - a[1]) * (c[0] - a[0])
+        return 0 if abs(v) <= 1e-12 * scale * scale else (1 if v > 0 else -1)
+
+    def on(a, b, c):  # c on segment ab, given collinear
+        return min(a[0], b[0]) <= c[0] <= max(a[0], b[0]) and \
+            min(a[1], b[1]) <= c[1] <= max(a[1], b[1])
+
+    for i in range(n):
+        a, b = pts[i], pts[(i + 1) % n]
+        for j in range(i + 1, n):
+            if j == i or (j + 1) % n == i or j == (i + 1) % n:
+                continue  # adjacent edges share a corner
+            c, d = pts[j], pts[(j + 1) % n]
+            o1, o2, o3, o4 = orient(a, b, c), orient(a, b, d), orient(c, d, a), orient(c, d, b)
+            if (o1 != o2 and o3 != o4) or (o1 == 0 and on(a, b, c)) or \
+                    (o2 == 0 and on(a, b, d)) or (o3 == 0 and on(c, d, a)) or \
+                    (o4 == 0 and on(c, d, b)):
+                raise ValueError(f"{where}: the outline crosses itself (edges {i} and {j})")
+    area = 0.5 * np.sum(pts[:, 0] * np.roll(pts[:, 1], -1) - np.roll(pts[:, 0], -1) * pts[:, 1])
+    if abs(area) <= 1e-12 * scale * scale:
+        raise ValueError(f"{where}: the outline encloses no area")
 
 
 def _read_outline(path: PathLike) -> np.ndarray:
