@@ -18,7 +18,6 @@ use femp::scene::Scene;
 use femp_contact::ccd::CcdOptions;
 use femp_contact::single::{self, Hessian};
 use femp_contact::{ContactError, LogBarrier};
-use femp_fem::Hyperelastic;
 use femp_kernels::{Grid, Kernel, Stencils};
 use nalgebra::{SMatrix, SVector, Vector3};
 use numpy::ndarray::{Array1, Array2, Array3};
@@ -307,17 +306,10 @@ impl PyWorld {
             "rest_volume",
             Array1::from(m.volume.clone()).into_pyarray(py),
         )?;
-        let det: Vec<f64> = m.f.iter().map(femp_fem::linalg::det).collect();
-        let volume: Vec<f64> = m.volume.iter().zip(&det).map(|(v, j)| v * j).collect();
-        d.set_item("volume", Array1::from(volume).into_pyarray(py))?;
+        d.set_item("volume", Array1::from(m.current_volume()).into_pyarray(py))?;
         d.set_item("F", matrices(&m.f).into_pyarray(py))?;
         d.set_item("B", matrices(&m.b).into_pyarray(py))?;
-        let stress: Vec<SMatrix<f64, D, D>> = (0..m.x.len())
-            .map(|p| {
-                let mat = &m.bodies[m.body[p] as usize].material;
-                femp_fem::material::cauchy(&mat.first_piola(&m.f[p]), &m.f[p])
-            })
-            .collect();
+        let (_, stress) = m.stresses();
         d.set_item("stress", matrices(&stress).into_pyarray(py))?;
         d.set_item("contact_force", vectors(&m.contact_force).into_pyarray(py))?;
         let body: Vec<i64> = m.body.iter().map(|&b| i64::from(b)).collect();

@@ -5,8 +5,6 @@ use std::fs::File;
 use std::io::{Seek, Write};
 use std::path::{Path, PathBuf};
 
-use femp_fem::Hyperelastic;
-use femp_fem::material::{cauchy, von_mises};
 use femp_fem::mesh::vtk::{Encoding, Field, Pvd, Vtu};
 use nalgebra::SVector;
 use serde::Serialize;
@@ -380,15 +378,8 @@ impl Output {
                 .join("frames")
                 .join(format!("particles_{k:06}.vtu"));
             let det: Vec<f64> = m.f.iter().map(femp_fem::linalg::det).collect();
-            let (mut vm, mut stress) =
-                (Vec::with_capacity(m.x.len()), Vec::with_capacity(m.x.len()));
-            for p in 0..m.x.len() {
-                let mat = &m.bodies[m.body[p] as usize].material;
-                let piola = mat.first_piola(&m.f[p]);
-                vm.push(von_mises(&piola, &m.f[p]));
-                stress.push(cauchy(&piola, &m.f[p]));
-            }
-            let volume: Vec<f64> = m.volume.iter().zip(&det).map(|(v, j)| v * j).collect();
+            let (vm, stress) = m.stresses();
+            let volume = m.current_volume();
             Vtu::points(&m.x)
                 .with_point_field(Field::vector("velocity", &m.v))
                 .with_point_field(Field::scalar("det_F", det))

@@ -63,6 +63,33 @@ pub struct Mpm<const D: usize> {
     pub contact_force: Vec<SVector<f64, D>>,
 }
 
+impl<const D: usize> Mpm<D> {
+    /// Each particle's von Mises stress and Cauchy stress `σ = P Fᵀ / det F` from its body's
+    /// material, one Piola evaluation each (what the frames write as `von_mises` and `stress`).
+    pub fn stresses(&self) -> (Vec<f64>, Vec<SMatrix<f64, D, D>>) {
+        use femp_fem::Hyperelastic;
+        (0..self.x.len())
+            .map(|p| {
+                let mat = &self.bodies[self.body[p] as usize].material;
+                let piola = mat.first_piola(&self.f[p]);
+                (
+                    femp_fem::material::von_mises(&piola, &self.f[p]),
+                    femp_fem::material::cauchy(&piola, &self.f[p]),
+                )
+            })
+            .unzip()
+    }
+
+    /// Each particle's current volume `V_p det F_p` (`volume` holds the rest volumes).
+    pub fn current_volume(&self) -> Vec<f64> {
+        self.volume
+            .iter()
+            .zip(&self.f)
+            .map(|(v, f)| v * femp_fem::linalg::det(f))
+            .collect()
+    }
+}
+
 /// One MPM body.
 #[derive(Clone, Debug)]
 pub struct MpmBody {

@@ -10,21 +10,7 @@ use serde_json::{Value, json};
 
 /// A valid 2D scene: an MPM block above a fixed FEM plate.
 fn base() -> Value {
-    json!({
-        "dimension": 2, "gravity": [0, -9.81],
-        "time": { "dt": 0.01, "duration": 0.1 },
-        "mpm": { "grid_spacing": 0.05 },
-        "bodies": [
-            { "kind": "mpm", "name": "block",
-              "shape": { "box": { "min": [-0.2, 0.05], "max": [0.2, 0.25] } },
-              "material": { "E": 1e5, "nu": 0.3, "rho": 1000 } },
-            { "kind": "fem", "name": "plate",
-              "mesh": { "rectangle": { "min": [-1, -0.1], "max": [1, 0], "cells": [20, 1] } },
-              "material": { "E": 1e7, "nu": 0.3, "rho": 1000 },
-              "prescribed": [ { "vertices": "all", "motion": [] } ] }
-        ],
-        "contact": { "dhat": 0.005, "kappa": 1e5 }
-    })
+    crate::trust::block(0.1)
 }
 
 /// Parse and build (2D) a scene; the error message, or `None` if it is accepted.

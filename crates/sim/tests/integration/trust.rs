@@ -23,7 +23,7 @@ fn run_femp(args: &[&str]) -> Output {
 use crate::cli::scene as scene_file;
 
 /// An MPM block falling onto a fixed FEM plate under gravity, for `duration` seconds.
-fn block(duration: f64) -> Value {
+pub(crate) fn block(duration: f64) -> Value {
     json!({
         "dimension": 2, "gravity": [0, -9.81],
         "time": { "dt": 0.01, "duration": duration },
