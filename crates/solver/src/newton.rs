@@ -17,6 +17,14 @@
 //! Failures are errors carrying the statistics so far: a line search that cannot decrease the
 //! energy with `α` above a floor, the iteration limit, a non-finite energy or gradient, an
 //! unfactorisable Hessian.
+//!
+//! In the code, a solve is a [`Newton`] (buffers and the factorisation, kept across solves) and
+//! a `SolveState` (energy, statistics and one policy per strategy: `ExactPolicy` for
+//! [`HessianStrategy::ExactWhenDefinite`], `CgPolicy` for [`LinearSolver::Pcg`] and its forcing,
+//! `HessianReuse` for [`NewtonParams::reuse_hessian_below`], `Stagnation` for round-off stops).
+//! An iteration runs `matrix_and_gradient`, `solve_with_cg` or `solve_with_cholesky`,
+//! `direction`, the stationarity tests and `line_search`, in that order; every phase that can
+//! end the solve returns a `Failure`, to which `SolveState::finish` attaches the statistics.
 
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering as AtomicOrdering};
@@ -409,7 +417,6 @@ impl Newton {
         params: &NewtonParams,
     ) -> Result<SolveStats, SolveError> {
         let n = obj.num_dofs();
-        let mut stats = SolveStats::default();
         if x.len() != n || fixed.len() != n || target.len() != n {
             return Err(SolveError::BadProblem(format!(
                 "{} DOFs but x has {} entries, fixed {} and target {}",
@@ -425,13 +432,26 @@ impl Newton {
                 params.dt, params.tolerance
             )));
         }
+        self.prepare(fixed, params);
+        let problem = Problem {
+            fixed,
+            target,
+            params,
+        };
+        let mut state = SolveState::new(params, self.lin.chol.stats);
+        let outcome = self.iterate(&mut state, obj, x, &problem);
+        state.finish(&self.lin.chol, outcome)
+    }
+
+    /// Free-DOF numbering and buffers for a solve (rebuilt per solve; the symbolic
+    /// factorisation survives if the pattern of the free part is unchanged).
+    fn prepare(&mut self, fixed: &[bool], params: &NewtonParams) {
         if params.ordering != self.ordering || params.threads != self.threads {
             self.lin.chol = Cholesky::new(params.ordering, params.threads);
             self.ordering = params.ordering;
             self.threads = params.threads;
         }
-        // Free-DOF numbering (rebuilt per solve; the symbolic factorisation survives if the
-        // pattern of the free part is unchanged).
+        let n = fixed.len();
         self.free.clear();
         self.free_dofs.clear();
         for (d, &f) in fixed.iter().enumerate() {
@@ -451,441 +471,462 @@ impl Newton {
         self.sol.resize(nf, 0.0);
         self.trial.resize(n, 0.0);
         self.g_trial.resize(n, 0.0);
-        let lin0 = self.lin.chol.stats;
+    }
 
-        let mut e = obj.energy(x);
-        let e0 = e;
-        let mut flat_history: Vec<f64> = Vec::new();
-        if !e.is_finite() {
-            return Err(SolveError::NonFinite {
-                what: "energy at the initial guess",
-                stats: Box::new(stats),
-            });
+    /// The Newton iterations from `x` until one of them ends the solve.
+    fn iterate(
+        &mut self,
+        state: &mut SolveState,
+        obj: &mut impl Objective,
+        x: &mut [f64],
+        problem: &Problem,
+    ) -> Result<(), Failure> {
+        state.e = obj.energy(x);
+        state.e0 = state.e;
+        if !state.e.is_finite() {
+            return Err(Failure::NonFinite("energy at the initial guess"));
         }
-        let finish = |stats: &mut SolveStats, chol: &Cholesky, e: f64| {
-            stats.final_energy = e;
-            stats.symbolic_s = chol.stats.symbolic_s - lin0.symbolic_s;
-            stats.numeric_s = chol.stats.numeric_s - lin0.numeric_s;
-            stats.solve_s = chol.stats.solve_s - lin0.solve_s;
-            stats.regularizations = chol.stats.regularizations - lin0.regularizations;
-            stats.symbolic_analyses = chol.stats.symbolic_count - lin0.symbolic_count;
-        };
-        let moving = (0..n).any(|d| fixed[d] && target[d] != x[d]);
-        if nf == 0 && !moving {
-            finish(&mut stats, &self.lin.chol, e);
-            return Ok(stats);
+        if self.free_dofs.is_empty() && problem.at_targets(x) {
+            return Ok(());
         }
-        let exact_wanted = params.hessian == HessianStrategy::ExactWhenDefinite;
-        // Consecutive rejected exact Hessians, and iterations to wait before the next try.
-        let (mut rejected_in_a_row, mut wait) = (0u32, 0u64);
-        // CG gave up on a projected Hessian in this solve: the rest of it uses Cholesky.
-        let mut cg_gave_up = false;
-        // The matrix (CSC, and factorisation on the Cholesky path) the last iteration solved
-        // with, if it may be reused: `Some(exact)` after a full step.
-        let mut held: Option<bool> = None;
-        // Eisenstat–Walker state: the last free gradient norm and forcing term.
-        let mut last_forcing = (0.0f64, 0.0f64);
-        for _ in 0..params.max_iterations {
+        for _ in 0..problem.params.max_iterations {
             if self
                 .interrupt
                 .as_ref()
                 .is_some_and(|f| f.load(AtomicOrdering::Relaxed))
             {
-                finish(&mut stats, &self.lin.chol, e);
-                return Err(SolveError::Interrupted {
-                    stats: Box::new(stats),
-                });
+                return Err(Failure::Interrupted);
             }
-            stats.iterations += 1;
-            let t = Instant::now();
-            obj.begin_iteration(x);
-            let pcg = match params.linear {
-                LinearSolver::Pcg {
-                    rtol,
-                    max_iterations,
-                    forcing,
-                } if !cg_gave_up => Some((rtol, max_iterations, forcing)),
-                _ => None,
-            };
-            // Reuse the last matrix? Only after a full step with a small increment, with every
-            // prescribed DOF at its target; the gradient comes first, then the objective says
-            // whether the Hessian's terms are still those of that matrix.
-            let mut have_gradient = false;
-            let mut reuse = None;
-            if let Some(held_exact) = held.filter(|_| {
-                stats.final_residual < params.reuse_hessian_below
-                    && (0..n).all(|d| !fixed[d] || x[d] == target[d])
-            }) {
-                // (Timed with the Hessian below: both are assembly.)
-                self.g.iter_mut().for_each(|v| *v = 0.0);
-                obj.gradient(x, &mut self.g);
-                have_gradient = true;
-                if obj.hessian_terms_unchanged() {
-                    reuse = Some(held_exact);
-                    stats.reused_hessians += 1;
-                }
-            }
-            // Otherwise the Hessian first; then its factorisation runs on another thread while
-            // this one computes the gradient (the exact Hessian's, if tried; the projected one
-            // after a rejection is factorised afterwards).
-            let exact = match reuse {
-                Some(exact) => exact,
-                None => {
-                    let try_exact = exact_wanted && wait == 0;
-                    wait = wait.saturating_sub(1);
-                    self.triplets.clear();
-                    let exact = try_exact && obj.exact_hessian(x, &mut self.triplets);
-                    if try_exact && !exact {
-                        wait = u64::MAX;
-                    }
-                    if !exact {
-                        self.triplets.clear();
-                        obj.hessian(x, &mut self.triplets);
-                    }
-                    exact
-                }
-            };
-            let hessian_s = t.elapsed().as_secs_f64();
-            let mut factor_result = None;
-            let mut gradient_s = 0.0;
-            if reuse.is_some() {
-                // The matrix and factorisation in `lin` are the last iteration's.
-                factor_result = Some(Ok(true));
-            } else {
-                let (lin, triplets, free) = (&mut self.lin, &self.triplets, &self.free);
-                let g = &mut self.g;
-                let mut factor = move || {
-                    if pcg.is_some() {
-                        // CG needs the matrix only.
-                        lin.build(triplets, free, nf);
-                        return Ok(true);
-                    }
-                    lin.assemble(triplets, free, nf)?;
-                    if exact {
-                        lin.chol.try_factorize(&mut lin.csc)
-                    } else {
-                        lin.chol.factorize(&mut lin.csc).map(|()| true)
-                    }
-                };
-                let mut gradient = || {
-                    if have_gradient {
-                        return;
-                    }
-                    let t = Instant::now();
-                    g.iter_mut().for_each(|v| *v = 0.0);
-                    obj.gradient(x, g);
-                    gradient_s = t.elapsed().as_secs_f64();
-                };
-                if rayon::current_num_threads() > 1 {
-                    rayon::in_place_scope(|scope| {
-                        let out = &mut factor_result;
-                        scope.spawn(move |_| *out = Some(factor()));
-                        gradient();
-                    });
-                } else {
-                    gradient();
-                    factor_result = Some(factor());
-                }
-            }
-            // Work, not wall time: the gradient overlapped the factorisation.
-            stats.assembly_s += hessian_s + gradient_s + std::mem::take(&mut self.lin.csc_s);
-            if self.g.iter().any(|v| !v.is_finite()) {
-                finish(&mut stats, &self.lin.chol, e);
-                return Err(SolveError::NonFinite {
-                    what: "gradient",
-                    stats: Box::new(stats),
-                });
-            }
-            let mut factorized = match factor_result.expect("the factorisation ran") {
-                Ok(ok) => ok,
-                Err(err) => {
-                    finish(&mut stats, &self.lin.chol, e);
-                    return Err(SolveError::Linear {
-                        source: err,
-                        stats: Box::new(stats),
-                    });
-                }
-            };
-            // With CG: solve now (the exact Hessian is rejected if CG meets non-positive
-            // curvature or does not converge); a projected Hessian CG cannot do is factorised.
-            let mut solved = false;
-            let mut loose = false;
-            // Whether the matrix this iteration solves with is the exact Hessian.
-            let solved_exact;
-            if let Some((rtol, max_it, forcing)) = pcg {
-                let eta = match forcing {
-                    Forcing::Fixed => rtol,
-                    Forcing::Adaptive { max } => {
-                        let gnorm = self
-                            .free_dofs
-                            .iter()
-                            .map(|&d| self.g[d] * self.g[d])
-                            .sum::<f64>()
-                            .sqrt();
-                        forcing_term(gnorm, &mut last_forcing, rtol, max)
-                    }
-                };
-                for attempt in 0..2 {
-                    self.prescribed_part(fixed, target, x);
-                    let t = Instant::now();
-                    let out = self
-                        .pcg
-                        .solve(&self.lin.csc, &self.rhs, &mut self.sol, eta, max_it);
-                    stats.pcg_s += t.elapsed().as_secs_f64();
-                    stats.pcg_iterations += out.iterations();
-                    if out.converged() {
-                        self.rhs.copy_from_slice(&self.sol);
-                        solved = true;
-                    }
-                    if attempt == 0 && exact {
-                        factorized = solved;
-                    }
-                    if solved || !(attempt == 0 && exact) {
-                        break;
-                    }
-                    // The exact Hessian is rejected: CG on the projected one.
-                    reject_exact(&mut stats, &mut rejected_in_a_row, &mut wait);
-                    let t = Instant::now();
-                    self.triplets.clear();
-                    obj.hessian(x, &mut self.triplets);
-                    self.lin.build(&self.triplets, &self.free, nf);
-                    stats.assembly_s +=
-                        t.elapsed().as_secs_f64() + std::mem::take(&mut self.lin.csc_s);
-                }
-                // A loosely solved direction that would pass the convergence test is solved
-                // again to `rtol`: CG's iterates grow in norm, so a loose one understates ‖p‖.
-                if solved && eta > rtol {
-                    let fixed_max = (0..n)
-                        .filter(|&d| fixed[d])
-                        .fold(0.0f64, |m, d| m.max(self.p[d].abs()));
-                    let free_max = self.rhs.iter().fold(0.0f64, |m, v| m.max(v.abs()));
-                    if fixed_max.max(free_max) / params.dt < params.tolerance {
-                        // The loose solution waits in `trial` (free until the line search).
-                        self.trial[..nf].copy_from_slice(&self.rhs);
-                        self.prescribed_part(fixed, target, x);
-                        let t = Instant::now();
-                        let out =
-                            self.pcg
-                                .solve(&self.lin.csc, &self.rhs, &mut self.sol, rtol, max_it);
-                        stats.pcg_s += t.elapsed().as_secs_f64();
-                        stats.pcg_iterations += out.iterations();
-                        stats.pcg_tightened += 1;
-                        if out.converged() {
-                            self.rhs.copy_from_slice(&self.sol);
-                        } else {
-                            // Keep the loose direction (a descent direction all the same),
-                            // but it cannot end the solve.
-                            loose = true;
-                            self.rhs.copy_from_slice(&self.trial[..nf]);
-                        }
-                    }
-                }
-                if exact && factorized {
-                    stats.exact_iterations += 1;
-                    rejected_in_a_row = 0;
-                }
-                solved_exact = exact && factorized;
-                if !solved {
-                    // Cholesky of the (projected) matrix already built, and for the rest of the
-                    // solve: its Hessians are alike.
-                    stats.pcg_fallbacks += 1;
-                    cg_gave_up = true;
-                    let result = self
-                        .lin
-                        .ensure_analysed()
-                        .and_then(|()| self.lin.chol.factorize(&mut self.lin.csc));
-                    if let Err(err) = result {
-                        finish(&mut stats, &self.lin.chol, e);
-                        return Err(SolveError::Linear {
-                            source: err,
-                            stats: Box::new(stats),
-                        });
-                    }
-                    self.prescribed_part(fixed, target, x);
-                    if nf > 0 {
-                        self.lin.chol.solve_in_place(&mut self.rhs);
-                    }
-                }
-            } else {
-                if exact {
-                    if factorized {
-                        stats.exact_iterations += 1;
-                        rejected_in_a_row = 0;
-                    } else {
-                        reject_exact(&mut stats, &mut rejected_in_a_row, &mut wait);
-                    }
-                }
-                solved_exact = exact && factorized;
-                if !factorized {
-                    let t = Instant::now();
-                    self.triplets.clear();
-                    obj.hessian(x, &mut self.triplets);
-                    stats.assembly_s += t.elapsed().as_secs_f64();
-                    let result = self
-                        .lin
-                        .assemble(&self.triplets, &self.free, nf)
-                        .and_then(|()| self.lin.chol.factorize(&mut self.lin.csc));
-                    stats.assembly_s += std::mem::take(&mut self.lin.csc_s);
-                    if let Err(err) = result {
-                        finish(&mut stats, &self.lin.chol, e);
-                        return Err(SolveError::Linear {
-                            source: err,
-                            stats: Box::new(stats),
-                        });
-                    }
-                    factorized = true;
-                }
-                debug_assert!(factorized);
-                self.prescribed_part(fixed, target, x);
-                if nf > 0 {
-                    self.lin.chol.solve_in_place(&mut self.rhs);
-                }
-            }
-            // The direction: prescribed increments of the fixed DOFs, the solve on free ones.
-            let mut pmax = 0.0f64;
-            let mut gp = 0.0;
-            for d in 0..n {
-                if fixed[d] {
-                    pmax = pmax.max(self.p[d].abs());
-                    gp += self.g[d] * self.p[d];
-                }
-            }
-            for (k, &d) in self.free_dofs.iter().enumerate() {
-                self.p[d] = self.rhs[k];
-                pmax = pmax.max(self.rhs[k].abs());
-                gp += self.g[d] * self.rhs[k];
-            }
-            if !pmax.is_finite() {
-                finish(&mut stats, &self.lin.chol, e);
-                return Err(SolveError::NonFinite {
-                    what: "Newton direction",
-                    stats: Box::new(stats),
-                });
-            }
-            stats.final_residual = pmax / params.dt;
-            let at_targets = (0..n).all(|d| !fixed[d] || x[d] == target[d]);
-            let converged = at_targets && !loose && stats.final_residual < params.tolerance;
-            // Stagnation at round-off: the predicted decrease is below the energy's round-off
-            // and ‖p‖ has stopped shrinking (Newton near a minimum shrinks it quadratically).
-            // The iterate is stationary to working precision although ‖p‖ is not small: p lies
-            // in a direction the energy barely sees (e.g. a grid node with a tiny mass, where
-            // the gradient's round-off divided by a tiny curvature dominates p).
-            let flat = at_targets && -gp <= ROUNDOFF * e.abs().max(e0.abs());
-            if flat && !converged {
-                flat_history.push(pmax);
-                let k = flat_history.len();
-                if k >= STAGNATION_ITERATIONS
-                    && flat_history[k - 1] > 0.5 * flat_history[k - STAGNATION_ITERATIONS]
-                {
-                    stats.roundoff_stops += 1;
-                    finish(&mut stats, &self.lin.chol, e);
-                    return Ok(stats);
-                }
-            } else {
-                flat_history.clear();
-            }
-
-            // Line search.
-            let t = Instant::now();
-            let bound = obj.max_step(x, &self.p);
-            let mut alpha = if bound.limit.is_some() || bound.alpha < 1.0 {
-                match bound.limit {
-                    Some(StepLimit::Ccd) => stats.limited_by_ccd += 1,
-                    Some(StepLimit::DetF) => stats.limited_by_det_f += 1,
-                    _ => stats.limited_by_other += 1,
-                }
-                (params.feasible_fraction * bound.alpha).min(1.0)
-            } else {
-                1.0
-            };
-            let full_step_feasible = alpha == 1.0;
-            let mut accepted = None;
-            while alpha * pmax >= params.min_step {
-                for d in 0..n {
-                    self.trial[d] = x[d] + alpha * self.p[d];
-                }
-                let et = obj.energy(&self.trial);
-                // While prescribed DOFs are still on their way, the energy may rise (the motion
-                // does work on the system): accept any feasible, finite step then. Afterwards,
-                // Armijo.
-                let ok = if at_targets {
-                    et <= e + params.armijo * alpha * gp
-                } else {
-                    true
-                };
-                if et.is_finite() && ok {
-                    accepted = Some(et);
-                    break;
-                }
-                alpha *= 0.5;
-                stats.backtracks += 1;
-            }
-            stats.line_search_s += t.elapsed().as_secs_f64();
-            // A backtracked step that leaves the energy exactly unchanged was accepted only
-            // because Armijo's bound rounds to `e` (α·gᵀp vanishes next to it): no progress.
-            // With a predicted decrease within a few thousand ulps of the energy the iterate is
-            // stationary to working precision — stop instead of repeating the zero step until
-            // the iteration limit. (Full steps with an unchanged energy are normal near a
-            // minimum, where the energy change is below round-off but x still improves.)
-            if accepted == Some(e)
-                && alpha < 1.0
-                && at_targets
-                && -gp <= 1e4 * ROUNDOFF * e.abs().max(e0.abs())
-            {
-                stats.roundoff_stops += 1;
-                finish(&mut stats, &self.lin.chol, e);
-                return Ok(stats);
-            }
-            held = (params.reuse_hessian_below > 0.0 && accepted.is_some() && alpha == 1.0)
-                .then_some(solved_exact);
-            match accepted {
-                Some(et) => {
-                    x.copy_from_slice(&self.trial);
-                    if alpha == 1.0 {
-                        // A full step reaches the targets exactly (no round-off drift).
-                        for d in 0..n {
-                            if fixed[d] {
-                                x[d] = target[d];
-                            }
-                        }
-                    }
-                    e = et;
-                }
-                None if converged => {
-                    // Already at the tolerance: the last increment is below round-off.
-                }
-                None if at_targets && -gp <= 1e4 * ROUNDOFF * e.abs().max(e0.abs()) => {
-                    // No step decreases the energy and the predicted decrease is within a few
-                    // thousand ulps of it: stationary to working precision.
-                    stats.roundoff_stops += 1;
-                    finish(&mut stats, &self.lin.chol, e);
-                    return Ok(stats);
-                }
-                None => {
-                    let on_the_gradients_word = (at_targets && !loose && full_step_feasible)
-                        .then(|| self.full_step_on_the_gradients_word(obj, x, e, gp))
-                        .flatten();
-                    let Some(et) = on_the_gradients_word else {
-                        finish(&mut stats, &self.lin.chol, e);
-                        return Err(SolveError::LineSearchStalled {
-                            stats: Box::new(stats),
-                        });
-                    };
-                    // `trial` holds x + p.
-                    x.copy_from_slice(&self.trial);
-                    e = et;
-                    stats.gradient_steps += 1;
-                }
-            }
-            if converged {
-                finish(&mut stats, &self.lin.chol, e);
-                return Ok(stats);
+            if self.iteration(state, obj, x, problem)? == Progress::Done {
+                return Ok(());
             }
         }
-        finish(&mut stats, &self.lin.chol, e);
-        Err(SolveError::IterationLimit {
-            stats: Box::new(stats),
+        Err(Failure::IterationLimit)
+    }
+
+    /// One Newton iteration: matrix and gradient, direction, stationarity test, line search,
+    /// step.
+    fn iteration(
+        &mut self,
+        state: &mut SolveState,
+        obj: &mut impl Objective,
+        x: &mut [f64],
+        problem: &Problem,
+    ) -> Result<Progress, Failure> {
+        let params = problem.params;
+        state.stats.iterations += 1;
+        let cg = state.cg.active(params.linear);
+        let matrix = self.matrix_and_gradient(state, obj, x, problem, cg.is_some())?;
+        let solved = match cg {
+            Some(cg) => self.solve_with_cg(state, obj, x, problem, matrix, cg)?,
+            None => self.solve_with_cholesky(state, obj, x, problem, matrix)?,
+        };
+        let Direction { pmax, gp } = self.direction(problem.fixed)?;
+        state.stats.final_residual = pmax / params.dt;
+        let at_targets = problem.at_targets(x);
+        let converged =
+            at_targets && !solved.loose && state.stats.final_residual < params.tolerance;
+        let scale = state.e.abs().max(state.e0.abs());
+        // Stagnation at round-off: the predicted decrease is below the energy's round-off
+        // and ‖p‖ has stopped shrinking (Newton near a minimum shrinks it quadratically).
+        // The iterate is stationary to working precision although ‖p‖ is not small: p lies
+        // in a direction the energy barely sees (e.g. a grid node with a tiny mass, where
+        // the gradient's round-off divided by a tiny curvature dominates p).
+        let flat = at_targets && -gp <= ROUNDOFF * scale;
+        if state.stagnation.stalled(flat && !converged, pmax) {
+            state.stats.roundoff_stops += 1;
+            return Ok(Progress::Done);
+        }
+
+        let search = self.line_search(state, obj, x, problem, pmax, gp);
+        // Within a few thousand ulps of the energy, a predicted decrease is round-off.
+        let within_roundoff = at_targets && -gp <= 1e4 * ROUNDOFF * scale;
+        // A backtracked step that leaves the energy exactly unchanged was accepted only
+        // because Armijo's bound rounds to `e` (α·gᵀp vanishes next to it): no progress.
+        // With a predicted decrease within round-off the iterate is stationary to working
+        // precision — stop instead of repeating the zero step until the iteration limit.
+        // (Full steps with an unchanged energy are normal near a minimum, where the energy
+        // change is below round-off but x still improves.)
+        if search.accepted == Some(state.e) && search.alpha < 1.0 && within_roundoff {
+            state.stats.roundoff_stops += 1;
+            return Ok(Progress::Done);
+        }
+        state.reuse.after_line_search(
+            search.accepted.is_some() && search.alpha == 1.0,
+            solved.exact,
+        );
+        match search.accepted {
+            Some(et) => {
+                x.copy_from_slice(&self.trial);
+                if search.alpha == 1.0 {
+                    // A full step reaches the targets exactly (no round-off drift).
+                    for (d, xd) in x.iter_mut().enumerate() {
+                        if problem.fixed[d] {
+                            *xd = problem.target[d];
+                        }
+                    }
+                }
+                state.e = et;
+            }
+            None if converged => {
+                // Already at the tolerance: the last increment is below round-off.
+            }
+            None if within_roundoff => {
+                // No step decreases the energy and the predicted decrease is round-off:
+                // stationary to working precision.
+                state.stats.roundoff_stops += 1;
+                return Ok(Progress::Done);
+            }
+            None => {
+                let on_the_gradients_word =
+                    (at_targets && !solved.loose && search.full_step_feasible)
+                        .then(|| self.full_step_on_the_gradients_word(obj, x, state.e, gp))
+                        .flatten();
+                let Some(et) = on_the_gradients_word else {
+                    return Err(Failure::LineSearchStalled);
+                };
+                // `trial` holds x + p.
+                x.copy_from_slice(&self.trial);
+                state.e = et;
+                state.stats.gradient_steps += 1;
+            }
+        }
+        Ok(if converged {
+            Progress::Done
+        } else {
+            Progress::Continue
         })
+    }
+
+    /// The gradient into `g` and the iteration's matrix (CSC, and its factorisation on the
+    /// Cholesky path) into `lin`: the last iteration's if [`HessianReuse`] allows it, else
+    /// the exact Hessian if [`ExactPolicy`] tries it and the objective has one, else the
+    /// projected one. A new matrix is built and factorised on another thread while this one
+    /// computes the gradient.
+    fn matrix_and_gradient(
+        &mut self,
+        state: &mut SolveState,
+        obj: &mut impl Objective,
+        x: &[f64],
+        problem: &Problem,
+        cg: bool,
+    ) -> Result<Matrix, Failure> {
+        let t = Instant::now();
+        obj.begin_iteration(x);
+        let nf = self.free_dofs.len();
+        // Reuse the last matrix? The gradient comes first, then the objective says whether
+        // the Hessian's terms are still those of that matrix.
+        let mut have_gradient = false;
+        let mut reuse = None;
+        if let Some(held_exact) = state
+            .reuse
+            .candidate(state.stats.final_residual, problem, x)
+        {
+            // (Timed with the Hessian below: both are assembly.)
+            self.g.fill(0.0);
+            obj.gradient(x, &mut self.g);
+            have_gradient = true;
+            if obj.hessian_terms_unchanged() {
+                reuse = Some(held_exact);
+                state.stats.reused_hessians += 1;
+            }
+        }
+        let exact = match reuse {
+            Some(exact) => exact,
+            None => {
+                let try_exact = state.exact.try_now();
+                self.triplets.clear();
+                let exact = try_exact && obj.exact_hessian(x, &mut self.triplets);
+                if try_exact && !exact {
+                    state.exact.unavailable();
+                }
+                if !exact {
+                    self.triplets.clear();
+                    obj.hessian(x, &mut self.triplets);
+                }
+                exact
+            }
+        };
+        let hessian_s = t.elapsed().as_secs_f64();
+        let mut factor_result = None;
+        let mut gradient_s = 0.0;
+        if reuse.is_some() {
+            // The matrix and factorisation in `lin` are the last iteration's.
+            factor_result = Some(Ok(true));
+        } else {
+            // The factorisation of the exact Hessian is a try (no diagonal shifts); the
+            // projected one after a rejection is factorised afterwards.
+            let (lin, triplets, free) = (&mut self.lin, &self.triplets, &self.free);
+            let g = &mut self.g;
+            let mut factor = move || {
+                if cg {
+                    // CG needs the matrix only.
+                    lin.build(triplets, free, nf);
+                    return Ok(true);
+                }
+                lin.assemble(triplets, free, nf)?;
+                if exact {
+                    lin.chol.try_factorize(&mut lin.csc)
+                } else {
+                    lin.chol.factorize(&mut lin.csc).map(|()| true)
+                }
+            };
+            let mut gradient = || {
+                if have_gradient {
+                    return;
+                }
+                let t = Instant::now();
+                g.fill(0.0);
+                obj.gradient(x, g);
+                gradient_s = t.elapsed().as_secs_f64();
+            };
+            if rayon::current_num_threads() > 1 {
+                rayon::in_place_scope(|scope| {
+                    let out = &mut factor_result;
+                    scope.spawn(move |_| *out = Some(factor()));
+                    gradient();
+                });
+            } else {
+                gradient();
+                factor_result = Some(factor());
+            }
+        }
+        // Work, not wall time: the gradient overlapped the factorisation.
+        state.stats.assembly_s += hessian_s + gradient_s + std::mem::take(&mut self.lin.csc_s);
+        if self.g.iter().any(|v| !v.is_finite()) {
+            return Err(Failure::NonFinite("gradient"));
+        }
+        let factorized = factor_result
+            .expect("the factorisation ran")
+            .map_err(Failure::Linear)?;
+        Ok(Matrix { exact, factorized })
+    }
+
+    /// The free part of the direction into `rhs` by conjugate gradients on the built matrix.
+    /// An exact Hessian is rejected if CG meets non-positive curvature or does not converge
+    /// (CG then runs on the projected one); a projected Hessian CG cannot do is factorised,
+    /// and [`CgPolicy`] hands the rest of the solve to Cholesky.
+    fn solve_with_cg(
+        &mut self,
+        state: &mut SolveState,
+        obj: &mut impl Objective,
+        x: &[f64],
+        problem: &Problem,
+        matrix: Matrix,
+        (rtol, max_it, forcing): (f64, usize, Forcing),
+    ) -> Result<Solved, Failure> {
+        let (fixed, target, params) = (problem.fixed, problem.target, problem.params);
+        let Matrix {
+            exact,
+            mut factorized,
+        } = matrix;
+        let nf = self.free_dofs.len();
+        let eta = match forcing {
+            Forcing::Fixed => rtol,
+            Forcing::Adaptive { max } => {
+                let gnorm = self
+                    .free_dofs
+                    .iter()
+                    .map(|&d| self.g[d] * self.g[d])
+                    .sum::<f64>()
+                    .sqrt();
+                forcing_term(gnorm, &mut state.cg.last_forcing, rtol, max)
+            }
+        };
+        let mut solved = false;
+        let mut loose = false;
+        for attempt in 0..2 {
+            self.prescribed_part(fixed, target, x);
+            let t = Instant::now();
+            let out = self
+                .pcg
+                .solve(&self.lin.csc, &self.rhs, &mut self.sol, eta, max_it);
+            state.stats.pcg_s += t.elapsed().as_secs_f64();
+            state.stats.pcg_iterations += out.iterations();
+            if out.converged() {
+                self.rhs.copy_from_slice(&self.sol);
+                solved = true;
+            }
+            if attempt == 0 && exact {
+                factorized = solved;
+            }
+            if solved || !(attempt == 0 && exact) {
+                break;
+            }
+            // The exact Hessian is rejected: CG on the projected one.
+            state.exact.rejected(&mut state.stats);
+            let t = Instant::now();
+            self.triplets.clear();
+            obj.hessian(x, &mut self.triplets);
+            self.lin.build(&self.triplets, &self.free, nf);
+            state.stats.assembly_s +=
+                t.elapsed().as_secs_f64() + std::mem::take(&mut self.lin.csc_s);
+        }
+        // A loosely solved direction that would pass the convergence test is solved again
+        // to `rtol`: CG's iterates grow in norm, so a loose one understates ‖p‖.
+        if solved && eta > rtol {
+            let fixed_max = (0..x.len())
+                .filter(|&d| fixed[d])
+                .fold(0.0f64, |m, d| m.max(self.p[d].abs()));
+            let free_max = self.rhs.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+            if fixed_max.max(free_max) / params.dt < params.tolerance {
+                // The loose solution waits in `trial` (free until the line search).
+                self.trial[..nf].copy_from_slice(&self.rhs);
+                self.prescribed_part(fixed, target, x);
+                let t = Instant::now();
+                let out = self
+                    .pcg
+                    .solve(&self.lin.csc, &self.rhs, &mut self.sol, rtol, max_it);
+                state.stats.pcg_s += t.elapsed().as_secs_f64();
+                state.stats.pcg_iterations += out.iterations();
+                state.stats.pcg_tightened += 1;
+                if out.converged() {
+                    self.rhs.copy_from_slice(&self.sol);
+                } else {
+                    // Keep the loose direction (a descent direction all the same), but it
+                    // cannot end the solve.
+                    loose = true;
+                    self.rhs.copy_from_slice(&self.trial[..nf]);
+                }
+            }
+        }
+        if exact && factorized {
+            state.exact.accepted(&mut state.stats);
+        }
+        if !solved {
+            // Cholesky of the (projected) matrix already built, and for the rest of the
+            // solve: its Hessians are alike.
+            state.stats.pcg_fallbacks += 1;
+            state.cg.gave_up = true;
+            self.lin
+                .ensure_analysed()
+                .and_then(|()| self.lin.chol.factorize(&mut self.lin.csc))
+                .map_err(Failure::Linear)?;
+            self.prescribed_part(fixed, target, x);
+            if nf > 0 {
+                self.lin.chol.solve_in_place(&mut self.rhs);
+            }
+        }
+        Ok(Solved {
+            exact: exact && factorized,
+            loose,
+        })
+    }
+
+    /// The free part of the direction into `rhs` by the factorisation; an exact Hessian
+    /// whose factorisation failed is rejected and the projected one factorised instead.
+    fn solve_with_cholesky(
+        &mut self,
+        state: &mut SolveState,
+        obj: &mut impl Objective,
+        x: &[f64],
+        problem: &Problem,
+        matrix: Matrix,
+    ) -> Result<Solved, Failure> {
+        let Matrix { exact, factorized } = matrix;
+        if exact {
+            if factorized {
+                state.exact.accepted(&mut state.stats);
+            } else {
+                state.exact.rejected(&mut state.stats);
+            }
+        }
+        if !factorized {
+            let t = Instant::now();
+            self.triplets.clear();
+            obj.hessian(x, &mut self.triplets);
+            state.stats.assembly_s += t.elapsed().as_secs_f64();
+            let result = self
+                .lin
+                .assemble(&self.triplets, &self.free, self.free_dofs.len())
+                .and_then(|()| self.lin.chol.factorize(&mut self.lin.csc));
+            state.stats.assembly_s += std::mem::take(&mut self.lin.csc_s);
+            result.map_err(Failure::Linear)?;
+        }
+        self.prescribed_part(problem.fixed, problem.target, x);
+        if !self.free_dofs.is_empty() {
+            self.lin.chol.solve_in_place(&mut self.rhs);
+        }
+        Ok(Solved {
+            exact: exact && factorized,
+            loose: false,
+        })
+    }
+
+    /// The direction `p`: prescribed increments of the fixed DOFs (set by
+    /// [`Newton::prescribed_part`]), the solve in `rhs` on free ones; its largest entry and
+    /// `gᵀp`.
+    fn direction(&mut self, fixed: &[bool]) -> Result<Direction, Failure> {
+        let mut pmax = 0.0f64;
+        let mut gp = 0.0;
+        for (d, &f) in fixed.iter().enumerate() {
+            if f {
+                pmax = pmax.max(self.p[d].abs());
+                gp += self.g[d] * self.p[d];
+            }
+        }
+        for (k, &d) in self.free_dofs.iter().enumerate() {
+            self.p[d] = self.rhs[k];
+            pmax = pmax.max(self.rhs[k].abs());
+            gp += self.g[d] * self.rhs[k];
+        }
+        if !pmax.is_finite() {
+            return Err(Failure::NonFinite("Newton direction"));
+        }
+        Ok(Direction { pmax, gp })
+    }
+
+    /// Backtracking from the feasible fraction of the objective's step bound (or 1) until
+    /// Armijo holds — or, while prescribed DOFs are still on their way, until the energy is
+    /// finite; the accepted point is left in `trial`.
+    fn line_search(
+        &mut self,
+        state: &mut SolveState,
+        obj: &mut impl Objective,
+        x: &[f64],
+        problem: &Problem,
+        pmax: f64,
+        gp: f64,
+    ) -> LineSearch {
+        let params = problem.params;
+        let stats = &mut state.stats;
+        let t = Instant::now();
+        let bound = obj.max_step(x, &self.p);
+        let mut alpha = if bound.limit.is_some() || bound.alpha < 1.0 {
+            match bound.limit {
+                Some(StepLimit::Ccd) => stats.limited_by_ccd += 1,
+                Some(StepLimit::DetF) => stats.limited_by_det_f += 1,
+                _ => stats.limited_by_other += 1,
+            }
+            (params.feasible_fraction * bound.alpha).min(1.0)
+        } else {
+            1.0
+        };
+        let full_step_feasible = alpha == 1.0;
+        let at_targets = problem.at_targets(x);
+        let mut accepted = None;
+        while alpha * pmax >= params.min_step {
+            for (t, (x, p)) in self.trial.iter_mut().zip(x.iter().zip(&self.p)) {
+                *t = x + alpha * p;
+            }
+            let et = obj.energy(&self.trial);
+            // While prescribed DOFs are still on their way, the energy may rise (the motion
+            // does work on the system): accept any feasible, finite step then. Afterwards,
+            // Armijo.
+            let ok = !at_targets || et <= state.e + params.armijo * alpha * gp;
+            if et.is_finite() && ok {
+                accepted = Some(et);
+                break;
+            }
+            alpha *= 0.5;
+            stats.backtracks += 1;
+        }
+        stats.line_search_s += t.elapsed().as_secs_f64();
+        LineSearch {
+            accepted,
+            alpha,
+            full_step_feasible,
+        }
     }
 
     /// The energy at the full step `x + p` (left in `trial`) if it may be taken although no
@@ -957,6 +998,237 @@ impl Newton {
     }
 }
 
+/// What a solve is asked: which DOFs are fixed, where they go, with which parameters.
+struct Problem<'a> {
+    fixed: &'a [bool],
+    target: &'a [f64],
+    params: &'a NewtonParams,
+}
+
+impl Problem<'_> {
+    /// Whether every fixed DOF of `x` is at its target.
+    fn at_targets(&self, x: &[f64]) -> bool {
+        (0..x.len()).all(|d| !self.fixed[d] || x[d] == self.target[d])
+    }
+}
+
+/// How an iteration ends: the solve goes on, or ends as converged or stationary.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Progress {
+    Continue,
+    Done,
+}
+
+/// Why a solve failed; [`SolveState::finish`] attaches the statistics.
+enum Failure {
+    NonFinite(&'static str),
+    Linear(LinearError),
+    LineSearchStalled,
+    IterationLimit,
+    Interrupted,
+}
+
+/// The iteration's matrix: whether it is the exact Hessian, and whether it is factorised
+/// (always on the CG path, where only the matrix is built; for an exact Hessian on the
+/// Cholesky path, whether the try succeeded).
+#[derive(Clone, Copy)]
+struct Matrix {
+    exact: bool,
+    factorized: bool,
+}
+
+/// How the direction was solved: with the exact Hessian, and only loosely (CG whose
+/// tightening did not converge — such a direction cannot end the solve).
+struct Solved {
+    exact: bool,
+    loose: bool,
+}
+
+/// The direction's largest entry and `gᵀp`.
+struct Direction {
+    pmax: f64,
+    gp: f64,
+}
+
+/// The line search's outcome: the energy at the accepted point (in `trial`), the step length
+/// it ended with, and whether the full step was feasible.
+struct LineSearch {
+    accepted: Option<f64>,
+    alpha: f64,
+    full_step_feasible: bool,
+}
+
+/// The state of one solve: the energy, the statistics and one policy per strategy.
+struct SolveState {
+    stats: SolveStats,
+    /// The factorisation's counters at the start (the solve reports differences).
+    lin0: crate::linear::LinearStats,
+    /// Energy at the current iterate, and at the initial guess.
+    e: f64,
+    e0: f64,
+    exact: ExactPolicy,
+    cg: CgPolicy,
+    reuse: HessianReuse,
+    stagnation: Stagnation,
+}
+
+impl SolveState {
+    fn new(params: &NewtonParams, lin0: crate::linear::LinearStats) -> Self {
+        Self {
+            stats: SolveStats::default(),
+            lin0,
+            e: 0.0,
+            e0: 0.0,
+            exact: ExactPolicy {
+                wanted: params.hessian == HessianStrategy::ExactWhenDefinite,
+                rejected_in_a_row: 0,
+                wait: 0,
+            },
+            cg: CgPolicy {
+                gave_up: false,
+                last_forcing: (0.0, 0.0),
+            },
+            reuse: HessianReuse {
+                below: params.reuse_hessian_below,
+                held: None,
+            },
+            stagnation: Stagnation {
+                history: Vec::new(),
+            },
+        }
+    }
+
+    /// The statistics with the final energy and the factorisation's share, as the solve's
+    /// result.
+    fn finish(
+        mut self,
+        chol: &Cholesky,
+        outcome: Result<(), Failure>,
+    ) -> Result<SolveStats, SolveError> {
+        let (s, lin0) = (&mut self.stats, &self.lin0);
+        s.final_energy = self.e;
+        s.symbolic_s = chol.stats.symbolic_s - lin0.symbolic_s;
+        s.numeric_s = chol.stats.numeric_s - lin0.numeric_s;
+        s.solve_s = chol.stats.solve_s - lin0.solve_s;
+        s.regularizations = chol.stats.regularizations - lin0.regularizations;
+        s.symbolic_analyses = chol.stats.symbolic_count - lin0.symbolic_count;
+        let stats = Box::new(self.stats);
+        match outcome {
+            Ok(()) => Ok(*stats),
+            Err(Failure::NonFinite(what)) => Err(SolveError::NonFinite { what, stats }),
+            Err(Failure::Linear(source)) => Err(SolveError::Linear { source, stats }),
+            Err(Failure::LineSearchStalled) => Err(SolveError::LineSearchStalled { stats }),
+            Err(Failure::IterationLimit) => Err(SolveError::IterationLimit { stats }),
+            Err(Failure::Interrupted) => Err(SolveError::Interrupted { stats }),
+        }
+    }
+}
+
+/// [`HessianStrategy::ExactWhenDefinite`]: whether an iteration tries the exact Hessian. After
+/// a first rejection the next iteration tries again, then the policy backs off (waits 1, 3,
+/// 7, … iterations): a solve whose exact Hessian stays indefinite wastes O(log iterations)
+/// tries. An objective without an exact Hessian is not asked again in the solve.
+struct ExactPolicy {
+    wanted: bool,
+    rejected_in_a_row: u32,
+    /// Iterations to wait before the next try.
+    wait: u64,
+}
+
+impl ExactPolicy {
+    /// Whether this iteration (which assembles a Hessian) tries the exact one.
+    fn try_now(&mut self) -> bool {
+        let try_exact = self.wanted && self.wait == 0;
+        self.wait = self.wait.saturating_sub(1);
+        try_exact
+    }
+
+    /// The objective has no exact Hessian.
+    fn unavailable(&mut self) {
+        self.wait = u64::MAX;
+    }
+
+    /// The exact Hessian was used.
+    fn accepted(&mut self, stats: &mut SolveStats) {
+        stats.exact_iterations += 1;
+        self.rejected_in_a_row = 0;
+    }
+
+    /// The exact Hessian was found indefinite (or CG could not solve with it).
+    fn rejected(&mut self, stats: &mut SolveStats) {
+        stats.exact_rejections += 1;
+        self.rejected_in_a_row += 1;
+        self.wait = (1u64 << (self.rejected_in_a_row - 1).min(20)) - 1;
+    }
+}
+
+/// [`LinearSolver::Pcg`]: whether CG is still in use in this solve, and the Eisenstat–Walker
+/// state ([`Forcing::Adaptive`]).
+struct CgPolicy {
+    /// CG gave up on a projected Hessian in this solve: the rest of it uses Cholesky.
+    gave_up: bool,
+    /// The last free gradient norm and forcing term.
+    last_forcing: (f64, f64),
+}
+
+impl CgPolicy {
+    /// CG's `(rtol, max_iterations, forcing)` if this iteration solves with it.
+    fn active(&self, linear: LinearSolver) -> Option<(f64, usize, Forcing)> {
+        match linear {
+            LinearSolver::Pcg {
+                rtol,
+                max_iterations,
+                forcing,
+            } if !self.gave_up => Some((rtol, max_iterations, forcing)),
+            _ => None,
+        }
+    }
+}
+
+/// [`NewtonParams::reuse_hessian_below`] (a Shamanskii step): the matrix of the last
+/// iteration may be solved with again after a full step with a small increment, every
+/// prescribed DOF at its target and the objective's Hessian terms unchanged.
+struct HessianReuse {
+    below: f64,
+    /// `Some(exact)` when the matrix the last iteration solved with may be reused.
+    held: Option<bool>,
+}
+
+impl HessianReuse {
+    /// The held matrix's `exact` flag if the iteration at `x`, after an increment
+    /// `residual`, may reuse it (subject to the objective's word).
+    fn candidate(&self, residual: f64, problem: &Problem, x: &[f64]) -> Option<bool> {
+        self.held
+            .filter(|_| residual < self.below && problem.at_targets(x))
+    }
+
+    /// After the line search: hold the matrix if the full step was taken.
+    fn after_line_search(&mut self, full_step: bool, exact: bool) {
+        self.held = (self.below > 0.0 && full_step).then_some(exact);
+    }
+}
+
+/// Stagnation at round-off: consecutive round-off-flat iterations whose ‖p‖ does not halve.
+struct Stagnation {
+    /// ‖p‖_∞ of the flat iterations in a row.
+    history: Vec<f64>,
+}
+
+impl Stagnation {
+    /// Record an iteration (flat and not converged, with largest increment `pmax`); whether
+    /// [`STAGNATION_ITERATIONS`] flat ones in a row have not halved ‖p‖.
+    fn stalled(&mut self, flat: bool, pmax: f64) -> bool {
+        if !flat {
+            self.history.clear();
+            return false;
+        }
+        self.history.push(pmax);
+        let k = self.history.len();
+        k >= STAGNATION_ITERATIONS
+            && self.history[k - 1] > 0.5 * self.history[k - STAGNATION_ITERATIONS]
+    }
+}
+
 /// The Eisenstat–Walker forcing term (choice 2, γ = 0.9, α = 2) for a free gradient of norm
 /// `gnorm`, given the last iteration's `(gradient norm, term)` (`(0, 0)` in a solve's first
 /// iteration, which gets `max`), clamped to `[rtol, max]`; updates `last`.
@@ -974,15 +1246,6 @@ fn forcing_term(gnorm: f64, last: &mut (f64, f64), rtol: f64, max: f64) -> f64 {
     let eta = eta.min(max).max(rtol);
     *last = (gnorm, eta);
     eta
-}
-
-/// Book an exact Hessian found indefinite: try again next iteration after a first rejection,
-/// then back off (wait 1, 3, 7, … iterations): a solve whose exact Hessian stays indefinite
-/// wastes O(log iterations) tries.
-fn reject_exact(stats: &mut SolveStats, rejected_in_a_row: &mut u32, wait: &mut u64) {
-    stats.exact_rejections += 1;
-    *rejected_in_a_row += 1;
-    *wait = (1u64 << (*rejected_in_a_row - 1).min(20)) - 1;
 }
 
 impl Linear {
