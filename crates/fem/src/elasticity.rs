@@ -4,7 +4,8 @@
 //! * [`ElasticBody::energy`] — parallel sum; `+∞` if any element is inverted (neo-Hookean).
 //! * [`ElasticBody::add_gradient`] — element forces computed in parallel into a buffer the body
 //!   owns, then summed per vertex in a fixed order (deterministic, no atomics, no allocation
-//!   after the first call).
+//!   after the first call); [`ElasticBody::add_gradient_with`] does the same through `&self`
+//!   with a buffer the caller keeps (what femp's step objective uses).
 //! * [`ElasticBody::hessian_triplets`] — `(row, col, value)` entries of the PSD-projected
 //!   Hessian (each element's `(D+1)² D²` entries, full blocks, both triangles), written in
 //!   parallel into a caller-owned vector resized to exactly the needed length; DOF of vertex
@@ -163,10 +164,28 @@ impl<const D: usize, M: Hyperelastic<D>> ElasticBody<D, M> {
         scale: f64,
         out: &mut [SVector<f64, D>],
     ) -> Result<(), FemError> {
+        let mut forces = std::mem::take(&mut self.forces);
+        let result = self.add_gradient_with(x, scale, &mut forces, out);
+        self.forces = forces;
+        result
+    }
+
+    /// [`Self::add_gradient`] through a shared reference, with the per-element forces in a
+    /// buffer the caller keeps (resized to the element count; reuse it across calls to
+    /// allocate nothing). Elements in parallel, then each vertex sums its elements' forces in
+    /// element order: the same bits on any thread count.
+    pub fn add_gradient_with(
+        &self,
+        x: &[SVector<f64, D>],
+        scale: f64,
+        forces: &mut Vec<[SVector<f64, D>; 4]>,
+        out: &mut [SVector<f64, D>],
+    ) -> Result<(), FemError> {
         self.check(x)?;
         check_len("gradient output", self.n_vertices, out.len())?;
+        forces.resize(self.cells.len(), [SVector::zeros(); 4]);
         let (cells, elements, material) = (&self.cells, &self.elements, &self.material);
-        self.forces
+        forces
             .par_iter_mut()
             .enumerate()
             .with_min_len(1024)
@@ -178,7 +197,7 @@ impl<const D: usize, M: Hyperelastic<D>> ElasticBody<D, M> {
                 let p = material.first_piola(&el.deformation_gradient(&xe));
                 chain_gradient(&p, el.gradients(), el.volume * scale, &mut f[..D + 1]);
             });
-        let (inc_start, inc, forces) = (&self.inc_start, &self.inc, &self.forces);
+        let (inc_start, inc, forces) = (&self.inc_start, &self.inc, &*forces);
         out.par_iter_mut()
             .enumerate()
             .with_min_len(1024)

@@ -229,7 +229,7 @@ fn run(
 
 /// The metrics of a run as the CSV's header and rows of numbers.
 fn table<const D: usize>(forces_of: &[&str], r: &RunResult) -> (String, Vec<Vec<f64>>) {
-    let header = femp::metrics::csv_header::<D>(forces_of);
+    let header = femp::metrics::csv_header::<D>(forces_of, r.summary.method == "augury");
     let rows = r
         .metrics
         .iter()
@@ -282,6 +282,7 @@ fn report_dict<'py>(py: Python<'py>, r: &femp::StepReport) -> PyResult<Bound<'py
     let d = PyDict::new(py);
     d.set_item("newton_iterations", r.newton_iterations)?;
     d.set_item("friction_iterations", r.friction_iterations)?;
+    d.set_item("augury_iterations", r.augury_iterations)?;
     d.set_item("friction_converged", r.friction_converged)?;
     d.set_item("contact_terms", r.contact_terms)?;
     d.set_item("min_distance", r.min_distance)?;
@@ -363,7 +364,7 @@ impl PyWorld {
         }
         (m.contact_forces, m.friction_forces) =
             w.body_forces(last.map_or(&[][..], |r| &r.pair_forces[..]));
-        let header = femp::metrics::csv_header::<D>(&names);
+        let header = femp::metrics::csv_header::<D>(&names, w.augury().is_some());
         let d = PyDict::new(py);
         for (k, v) in header.split(',').zip(parse_row(&m.csv_row::<D>())) {
             d.set_item(k, v)?;
@@ -388,8 +389,8 @@ impl PyWorld {
     }
 
     /// Advance `n` time steps (default 1); returns the last step's solver report
-    /// (`newton_iterations`, `friction_iterations`, `friction_converged`, `contact_terms`,
-    /// `min_distance`). A failed step raises `SimulationError`; Ctrl-C, `KeyboardInterrupt`.
+    /// (`newton_iterations`, `friction_iterations`, `augury_iterations`, `friction_converged`,
+    /// `contact_terms`, `min_distance`). A failed step raises `SimulationError`; Ctrl-C, `KeyboardInterrupt`.
     #[pyo3(signature = (n = 1))]
     fn step<'py>(&mut self, py: Python<'py>, n: usize) -> PyResult<Bound<'py, PyDict>> {
         let world = &mut self.world;

@@ -12,14 +12,14 @@ use femp_augury::{AuguryContact, AuguryParams, ContactModel, Transfer, TransferK
 use femp_kernels::Kernel;
 use nalgebra::{SMatrix, SVector};
 
+use crate::bodies::{FemBody, inside_elements, point_facet_distance};
 use crate::error::{SimError, invalid};
 use crate::motion::angular_components;
+use crate::report::StepReport;
 use crate::scene::{
     AuguryContactSpec, AuguryModelSpec, AuguryObstaclesSpec, AugurySpec, AuguryTransferSpec,
     BodySpec, KernelSpec, SceneSpec,
 };
-use crate::step::StepReport;
-use crate::world::{FemBody, World, inside_elements, point_facet_distance};
 
 /// The explicit system behind an augury scene.
 pub struct AuguryState<const D: usize> {
@@ -306,13 +306,17 @@ impl<const D: usize> AuguryState<D> {
     }
 }
 
-impl<const D: usize> World<D> {
-    /// One explicit step of an augury scene.
-    pub(crate) fn step_augury(&mut self) -> Result<StepReport, SimError> {
+impl<const D: usize> AuguryState<D> {
+    /// One explicit step; the world's FEM bodies `fem` (step `step` at time `time`) take the
+    /// system's new state.
+    pub(crate) fn step(
+        &mut self,
+        fem: &mut [FemBody<D>],
+        step: usize,
+        time: f64,
+    ) -> Result<StepReport, SimError> {
         let clock = std::time::Instant::now();
-        let (step, time) = (self.step, self.time);
-        let aug = self.augury.as_mut().expect("an augury world");
-        let fem = &self.fem;
+        let prescribed = &*fem;
         let hint = |aug: &AuguryState<D>| {
             if aug.system.params.dt > aug.stable_dt {
                 format!(
@@ -323,21 +327,22 @@ impl<const D: usize> World<D> {
                 String::new()
             }
         };
-        let result = aug.system.step_with(|k, t, x, v| {
-            for (ids, motion) in &fem[k].prescribed {
+        let result = self.system.step_with(|k, t, x, v| {
+            let body = &prescribed[k];
+            for (ids, motion) in &body.prescribed {
                 let r = motion.at(t);
                 for &i in ids {
-                    x[i] = r.apply(&fem[k].initial[i]);
-                    v[i] = motion.velocity(t, &fem[k].initial[i]);
+                    x[i] = r.apply(&body.initial[i]);
+                    v[i] = motion.velocity(t, &body.initial[i]);
                 }
             }
         });
         let iterations = result.map_err(|e| SimError::StepFailed {
             step,
             time,
-            message: format!("{e}{}", hint(aug)),
+            message: format!("{e}{}", hint(self)),
         })?;
-        for b in &aug.system.bodies {
+        for b in &self.system.bodies {
             if let Some(k) =
                 b.v.iter()
                     .zip(&b.x)
@@ -349,21 +354,19 @@ impl<const D: usize> World<D> {
                     message: format!(
                         "blow-up: vertex {k} of `{}` has a non-finite position or velocity{}",
                         b.name,
-                        hint(aug)
+                        hint(self)
                     ),
                 });
             }
         }
-        for (fb, eb) in self.fem.iter_mut().zip(&aug.system.bodies) {
+        for (fb, eb) in fem.iter_mut().zip(&self.system.bodies) {
             fb.x.copy_from_slice(&eb.x);
             fb.v.copy_from_slice(&eb.v);
             fb.a.copy_from_slice(&eb.a);
         }
-        self.time = aug.system.time;
-        self.step += 1;
-        let contact_terms = aug.system.penalty.as_ref().map_or(0, |p| p.active);
+        let contact_terms = self.system.penalty.as_ref().map_or(0, |p| p.active);
         Ok(StepReport {
-            friction_iterations: iterations,
+            augury_iterations: iterations,
             friction_converged: true,
             contact_terms,
             min_distance: f64::INFINITY,

@@ -13,6 +13,12 @@
 //! * [`run`](run::run) — a whole run with output (`.vtu`/`.pvd` frames, `metrics.csv`,
 //!   `summary.json`) and progress.
 //!
+//! Inside: the bodies both methods share (`bodies`: MPM particles and grid, FEM bodies, contact
+//! pairs, level sets, point-in-body queries) make up a [`World`], whose
+//! [`world::MethodState`] holds each method's own state — BFEMP's integrator and Newton solver
+//! (the step in `step`, its incremental potential in `objective`), or the augury system
+//! (`augury`). Both steps return a [`StepReport`].
+//!
 //! ```no_run
 //! let scene = femp::scene::load(std::path::Path::new("fixtures/scenes/block_on_plate.json"))?;
 //! let result = femp::run::run(scene, std::path::Path::new("out"), &Default::default())?;
@@ -21,6 +27,7 @@
 //! ```
 
 mod augury;
+mod bodies;
 mod build;
 mod error;
 pub mod metrics;
@@ -28,11 +35,12 @@ pub mod motion;
 mod objective;
 pub mod output;
 pub mod render;
+mod report;
 pub mod run;
 pub mod scene;
 mod step;
 pub mod world;
 
 pub use error::SimError;
-pub use step::StepReport;
+pub use report::StepReport;
 pub use world::World;

@@ -123,7 +123,7 @@ fn trial_steps<const D: usize>(w: &mut femp::World<D>, n: usize) -> anyhow::Resu
         newton as f64 / n as f64,
         femp::run::human_seconds(per * total as f64)
     );
-    if n < total && w.augury.is_none() {
+    if n < total && w.augury().is_none() {
         s += if contact == 0 {
             " — a lower bound: no trial step had contact, and steps in contact cost more \
              (often 10× in 3D MPM)"
@@ -230,7 +230,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             let r = femp::run::run(s, &out, &opts)
                 .with_context(|| format!("running {}", scene.display()))?;
             let work = if r.summary.method == "augury" {
-                format!("{} augury iterations", r.summary.friction_iterations)
+                format!("{} augury iterations", r.summary.augury_iterations)
             } else {
                 format!("{} Newton iterations", r.summary.newton_iterations)
             };
@@ -264,7 +264,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                 let particles = w.mpm.as_ref().map_or(0, |m| m.x.len());
                 let vertices = w.fem.iter().map(|b| b.x.len()).sum::<usize>();
                 let mut s = format!("{particles} particles, {vertices} FEM vertices");
-                if let Some(a) = &w.augury {
+                if let Some(a) = w.augury() {
                     s += &format!(
                         "; augury: grid spacing {:.4e} m, {} boundary particles, Δt = {:.3e} s ({:.2} × the explicit stability estimate {:.3e} s)",
                         a.grid_spacing,

@@ -35,6 +35,11 @@ pub struct Metrics {
     pub newton_iterations: usize,
     /// Friction iterations of the step.
     pub friction_iterations: usize,
+    /// Iterations of the augury contact step.
+    pub augury_iterations: usize,
+    /// Whether this is an augury scene's row: its solver columns are `augury_iterations` and
+    /// `contact_terms` (BFEMP's Newton, friction and linear-solver columns do not apply).
+    pub augury: bool,
     /// Active contact terms at the end of the step.
     pub contact_terms: usize,
     /// Line-search halvings over the step's Newton iterations.
@@ -59,9 +64,10 @@ pub struct Metrics {
     pub friction_forces: Vec<[f64; 3]>,
 }
 
-/// CSV header matching [`Metrics::csv_row`], with force columns for the bodies `forces_of`
-/// (`force_NAME_x`, … the contact force, then `friction_NAME_x`, … its friction part).
-pub fn csv_header<const D: usize>(forces_of: &[&str]) -> String {
+/// CSV header matching [`Metrics::csv_row`] for a BFEMP scene or (`augury`) an augury one,
+/// with force columns for the bodies `forces_of` (`force_NAME_x`, … the contact force, then
+/// `friction_NAME_x`, … its friction part).
+pub fn csv_header<const D: usize>(forces_of: &[&str], augury: bool) -> String {
     let mut h = String::from(
         "step,t,dt,kinetic_energy,elastic_energy,barrier_energy,gravity_energy,total_energy,momentum_x,momentum_y",
     );
@@ -70,9 +76,11 @@ pub fn csv_header<const D: usize>(forces_of: &[&str]) -> String {
     } else {
         h.push_str(",angular_momentum");
     }
-    h.push_str(
-        ",min_distance,penetrations,newton_iterations,friction_iterations,contact_terms,backtracks,ccd_limited,exact_hessians,reused_hessians,pcg_iterations,wall_s",
-    );
+    h.push_str(if augury {
+        ",min_distance,penetrations,augury_iterations,contact_terms,wall_s"
+    } else {
+        ",min_distance,penetrations,newton_iterations,friction_iterations,contact_terms,backtracks,ccd_limited,exact_hessians,reused_hessians,pcg_iterations,wall_s"
+    });
     for kind in ["force", "friction"] {
         for name in forces_of {
             for axis in ["x", "y", "z"].iter().take(D) {
@@ -91,6 +99,7 @@ impl Metrics {
         let s = &report.stats;
         self.newton_iterations = report.newton_iterations;
         self.friction_iterations = report.friction_iterations;
+        self.augury_iterations = report.augury_iterations;
         self.contact_terms = report.contact_terms;
         self.backtracks = s.backtracks;
         self.ccd_limited = s.limited_by_ccd;
@@ -128,20 +137,31 @@ impl Metrics {
         } else {
             r.push_str(&format!(",{:.12e}", self.angular_momentum[2]));
         }
-        r.push_str(&format!(
-            ",{:.9e},{},{},{},{},{},{},{},{},{},{:.6e}",
-            self.min_distance,
-            self.penetrations,
-            self.newton_iterations,
-            self.friction_iterations,
-            self.contact_terms,
-            self.backtracks,
-            self.ccd_limited,
-            self.exact_hessians,
-            self.reused_hessians,
-            self.pcg_iterations,
-            self.wall_s
-        ));
+        if self.augury {
+            r.push_str(&format!(
+                ",{:.9e},{},{},{},{:.6e}",
+                self.min_distance,
+                self.penetrations,
+                self.augury_iterations,
+                self.contact_terms,
+                self.wall_s
+            ));
+        } else {
+            r.push_str(&format!(
+                ",{:.9e},{},{},{},{},{},{},{},{},{},{:.6e}",
+                self.min_distance,
+                self.penetrations,
+                self.newton_iterations,
+                self.friction_iterations,
+                self.contact_terms,
+                self.backtracks,
+                self.ccd_limited,
+                self.exact_hessians,
+                self.reused_hessians,
+                self.pcg_iterations,
+                self.wall_s
+            ));
+        }
         for f in self.contact_forces.iter().chain(&self.friction_forces) {
             for v in &f[..D] {
                 r.push_str(&format!(",{v:.12e}"));
@@ -171,6 +191,7 @@ impl<const D: usize> World<D> {
             t: self.time,
             dt: self.dt,
             min_distance: f64::INFINITY,
+            augury: self.augury().is_some(),
             ..Default::default()
         };
         let mut p = Vector3::zeros();
@@ -209,7 +230,7 @@ impl<const D: usize> World<D> {
                 m.elastic_energy += body.elastic.energy(&body.x).unwrap_or(f64::INFINITY);
             }
         }
-        if let Some(aug) = &self.augury {
+        if let Some(aug) = self.augury() {
             l += aug.spin();
             let (n, d) = aug.contact_metrics(&self.fem);
             m.penetrations = n;

@@ -13,7 +13,7 @@ use femp_contact::ccd::{self, CcdOptions};
 use femp_contact::friction::{self, FrictionTerm};
 use femp_contact::{ContactTerm, TermDerivatives};
 use femp_fem::inversion::first_det_root;
-use femp_fem::{Hyperelastic, Tangent, Triplet, chain_gradient, chain_hessian_add_upper};
+use femp_fem::{Hyperelastic, Tangent, Triplet, chain_hessian_add_upper};
 use femp_kernels::transfer;
 use femp_solver::{Objective, StepBound, StepLimit, Triplets};
 use nalgebra::{SMatrix, SVector};
@@ -21,7 +21,7 @@ use rayon::prelude::*;
 use std::borrow::Cow;
 use std::time::Instant;
 
-use crate::world::{FemBody, Mpm, Pair, Points};
+use crate::bodies::{FemBody, Mpm, Pair, Points};
 
 /// A penalty `½ k (n·x_i − c)²` on one grid node (slip level sets with oblique normals).
 #[derive(Clone, Copy, Debug)]
@@ -231,20 +231,16 @@ pub struct StepObjective<'a, const D: usize> {
     disp: (Vec<SVector<f64, D>>, Vec<SVector<f64, D>>),
     fem_trip: Vec<Triplet>,
     node_force: Vec<SVector<f64, D>>,
+    /// Per-element forces and per-vertex gradient of a FEM body (femp-fem's
+    /// `ElasticBody::add_gradient_with`), reused across bodies and calls.
+    fem_grad: (Vec<[SVector<f64, D>; 4]>, Vec<SVector<f64, D>>),
     /// The x the scratch state was last unpacked at.
     unpacked: Vec<f64>,
     /// Incremented whenever the scratch state changes (a new x, a new friction operator).
     generation: u64,
-    /// Contact derivatives per pair (barrier, friction) computed by the last `gradient`, valid
-    /// while `generation` equals `.1`: Newton asks for the Hessian at the same x right after
-    /// the gradient, and the term derivatives carry both.
-    contact_cache: (Vec<[Vec<TermDerivatives<D>>; 2]>, Option<u64>),
-    /// Whether the cached barrier derivatives carry the exact Hessian (else the pair's
-    /// projected or Gauss–Newton one).
-    contact_cache_exact: bool,
-    // Contact terms and smallest distance at the cached derivatives' state, and a scratch
-    // gradient for the Hessian computing them first.
-    contact_cache_summary: (usize, f64),
+    /// The contact terms' derivatives at one state, shared by the gradient and the Hessian.
+    contact: ContactDerivatives<D>,
+    /// A scratch gradient for a Hessian that computes the contact derivatives first.
     contact_scratch: Vec<f64>,
     emit_counts: Vec<usize>,
     /// The gradient computes the barrier's exact Hessian for the cache (the solver asks for
@@ -259,6 +255,41 @@ pub struct StepObjective<'a, const D: usize> {
     grad_terms: u64,
     hess_terms: Option<u64>,
     bound_scratch: BoundScratch<D>,
+}
+
+/// The contact terms' derivatives per pair (barrier, friction) at one state of the objective —
+/// what both the gradient and the Hessian at that state scatter, so whichever of the two comes
+/// first computes them and the other reuses them (Newton asks for the Hessian first, then the
+/// gradient while the factorisation runs). They serve
+/// * a gradient at the same state (`generation`: the same x and friction operator) whatever
+///   their barrier Hessian kind — the gradients are the same;
+/// * a Hessian only at the same state *and* kind (exact or the pair's projected one).
+struct ContactDerivatives<const D: usize> {
+    per_pair: Vec<[Vec<TermDerivatives<D>>; 2]>,
+    /// The state they were computed at; `None` before the first computation.
+    computed_at: Option<State>,
+    /// Active terms and smallest contact distance at that state.
+    summary: (usize, f64),
+}
+
+/// A state of the objective (its `generation`: x and the friction operator) and the kind of barrier Hessian
+/// computed there.
+#[derive(Clone, Copy, PartialEq, Eq)]
+struct State {
+    generation: u64,
+    exact: bool,
+}
+
+impl<const D: usize> ContactDerivatives<D> {
+    /// Whether a gradient at state `generation` may scatter these derivatives.
+    fn serves_gradient(&self, generation: u64) -> bool {
+        self.computed_at.is_some_and(|s| s.generation == generation)
+    }
+
+    /// Whether a Hessian (`exact` or projected) at state `generation` may scatter them.
+    fn serves_hessian(&self, generation: u64, exact: bool) -> bool {
+        self.computed_at == Some(State { generation, exact })
+    }
 }
 
 /// A fingerprint of the active barrier terms (pair, particle, feature vertices, in order): equal
@@ -323,14 +354,14 @@ impl<'a, const D: usize> StepObjective<'a, D> {
             disp: (Vec::new(), Vec::new()),
             fem_trip: Vec::new(),
             node_force: Vec::new(),
+            fem_grad: (Vec::new(), Vec::new()),
             unpacked: Vec::new(),
             generation: 0,
-            contact_cache: (
-                (0..pairs.len()).map(|_| [Vec::new(), Vec::new()]).collect(),
-                None,
-            ),
-            contact_cache_exact: false,
-            contact_cache_summary: (0, f64::INFINITY),
+            contact: ContactDerivatives {
+                per_pair: (0..pairs.len()).map(|_| [Vec::new(), Vec::new()]).collect(),
+                computed_at: None,
+                summary: (0, f64::INFINITY),
+            },
             contact_scratch: Vec::new(),
             emit_counts: Vec::new(),
             prefer_exact: false,
@@ -462,7 +493,7 @@ impl<'a, const D: usize> StepObjective<'a, D> {
     fn contact_gradient(&mut self, g: &mut [f64], exact: bool) -> (usize, f64) {
         let mut count = 0;
         let mut dmin = f64::INFINITY;
-        let mut cache = std::mem::take(&mut self.contact_cache.0);
+        let mut cache = std::mem::take(&mut self.contact.per_pair);
         for k in 0..self.pairs.len() {
             let [bar, fric] = &mut cache[k];
             bar.clear();
@@ -495,9 +526,14 @@ impl<'a, const D: usize> StepObjective<'a, D> {
                 self.scatter(k, fric, Some(g), None);
             }
         }
-        self.contact_cache = (cache, Some(self.generation));
-        self.contact_cache_exact = exact;
-        self.contact_cache_summary = (count, dmin);
+        self.contact = ContactDerivatives {
+            per_pair: cache,
+            computed_at: Some(State {
+                generation: self.generation,
+                exact,
+            }),
+            summary: (count, dmin),
+        };
         (count, dmin)
     }
 
@@ -537,13 +573,13 @@ impl<'a, const D: usize> StepObjective<'a, D> {
         self.timing.mpm_s += mpm_s;
         // The contact terms' blocks (particle–particle ones into the grid Hessian).
         let mut clock = Instant::now();
-        let cache = std::mem::take(&mut self.contact_cache.0);
+        let cache = std::mem::take(&mut self.contact.per_pair);
         for (k, [bar, fric]) in cache.iter().enumerate() {
             self.scatter(k, bar, None, Some(h));
             self.scatter(k, fric, None, Some(h));
         }
         self.hess_terms = Some(terms_key(&cache));
-        self.contact_cache.0 = cache;
+        self.contact.per_pair = cache;
         self.timing.contact_s += lap(&mut clock);
         if self.mpm.is_some() {
             let mut counts = std::mem::take(&mut self.emit_counts);
@@ -579,7 +615,7 @@ impl<'a, const D: usize> StepObjective<'a, D> {
             self.fem_trip = trip;
         }
         self.timing.fem_s += lap(&mut clock);
-        if self.contact_cache.1 != Some(self.generation) || self.contact_cache_exact != exact {
+        if !self.contact.serves_hessian(self.generation, exact) {
             // No gradient at this x and friction operator yet (the Newton solver asks for the
             // Hessian first), or it kept the other kind of barrier Hessian: compute the
             // derivatives (the gradient at this x then reuses them).
@@ -1048,26 +1084,13 @@ impl<const D: usize> Objective for StepObjective<'_, D> {
             }
             let off = self.fem_offset[b];
             let n = self.fem[b].x.len();
-            let mut gb = vec![SVector::<f64, D>::zeros(); n];
-            // ElasticBody::add_gradient needs &mut for its force buffer; compute through the
-            // chain rule here instead (same formula), element by element.
-            let body = &self.fem[b];
-            for (e, c) in body.elastic.cells().iter().enumerate() {
-                let el = &body.elastic.elements()[e];
-                let xe: [SVector<f64, D>; 4] = std::array::from_fn(|k| {
-                    if k <= D {
-                        self.fem_x[b][c[k]]
-                    } else {
-                        SVector::zeros()
-                    }
-                });
-                let pmat = body.material.first_piola(&el.deformation_gradient(&xe));
-                let mut fe = [SVector::<f64, D>::zeros(); 4];
-                chain_gradient(&pmat, el.gradients(), el.volume * w, &mut fe[..D + 1]);
-                for k in 0..=D {
-                    gb[c[k]] += fe[k];
-                }
-            }
+            let (forces, gb) = &mut self.fem_grad;
+            gb.clear();
+            gb.resize(n, SVector::zeros());
+            self.fem[b]
+                .elastic
+                .add_gradient_with(&self.fem_x[b], w, forces, gb)
+                .expect("a FEM body's positions match its mesh");
             for v in 0..n {
                 for a in 0..D {
                     g[off + v * D + a] += gb[v][a];
@@ -1075,20 +1098,20 @@ impl<const D: usize> Objective for StepObjective<'_, D> {
             }
         }
         self.timing.fem_s += lap(&mut clock);
-        let (count, dmin) = if self.contact_cache.1 == Some(self.generation) {
+        let (count, dmin) = if self.contact.serves_gradient(self.generation) {
             // The Hessian at this x computed the contact derivatives (either kind: their
             // gradients are the same): scatter them in the same order.
-            let cache = std::mem::take(&mut self.contact_cache.0);
+            let cache = std::mem::take(&mut self.contact.per_pair);
             for (k, [bar, fric]) in cache.iter().enumerate() {
                 self.scatter(k, bar, Some(g), None);
                 self.scatter(k, fric, Some(g), None);
             }
-            self.contact_cache.0 = cache;
-            self.contact_cache_summary
+            self.contact.per_pair = cache;
+            self.contact.summary
         } else {
             self.contact_gradient(g, self.prefer_exact)
         };
-        self.grad_terms = terms_key(&self.contact_cache.0);
+        self.grad_terms = terms_key(&self.contact.per_pair);
         self.timing.contact_s += lap(&mut clock);
         self.last_contacts = (count, dmin);
     }
@@ -1340,7 +1363,7 @@ mod tests {
     /// with friction lagged at the start. Returns the number of active contact terms.
     fn check_gradient<const D: usize>(json: &str, amplitude: f64) -> usize {
         let mut w = world::<D>(json);
-        let setup = w.setup().unwrap();
+        let setup = w.setup(w.bfemp().unwrap().integrator).unwrap();
         let mut obj = setup.objective(&w);
         obj.lag_friction(&setup.x0);
         let r = noise(setup.n_dofs, 7);
@@ -1398,7 +1421,7 @@ mod tests {
     /// inertia, stretched elasticity, gravity, penalties (bodies apart, no contact).
     fn check_hessian<const D: usize>(json: &str) {
         let mut w = world::<D>(json);
-        let setup = w.setup().unwrap();
+        let setup = w.setup(w.bfemp().unwrap().integrator).unwrap();
         let n = setup.n_dofs;
         let mut obj = setup.objective(&w);
         // A uniform 5 % expansion (every F ≈ 1.05 I, where the neo-Hookean tangent is positive
@@ -1472,7 +1495,7 @@ mod tests {
     /// the other kind of Hessian is asked for (exact, projected, exact again).
     fn check_exact_hessian<const D: usize>(json: &str) {
         let mut w = world::<D>(json);
-        let setup = w.setup().unwrap();
+        let setup = w.setup(w.bfemp().unwrap().integrator).unwrap();
         let n = setup.n_dofs;
         let mut obj = setup.objective(&w);
         let r = noise(n, 13);
@@ -1533,7 +1556,7 @@ mod tests {
     #[test]
     fn hessian_terms_unchanged_tracks_the_contact_set() {
         let mut w = world::<2>(SCENE_2D);
-        let setup = w.setup().unwrap();
+        let setup = w.setup(w.bfemp().unwrap().integrator).unwrap();
         let n = setup.n_dofs;
         let r = noise(n, 11);
         let x: Vec<f64> = (0..n).map(|d| setup.x0[d] + 1e-4 * r[d]).collect();
@@ -1581,7 +1604,7 @@ mod tests {
     #[test]
     fn gradient_after_the_hessian_equals_a_fresh_one() {
         let mut w = world::<2>(SCENE_2D);
-        let setup = w.setup().unwrap();
+        let setup = w.setup(w.bfemp().unwrap().integrator).unwrap();
         let n = setup.n_dofs;
         let r = noise(n, 7);
         let x: Vec<f64> = (0..n).map(|d| setup.x0[d] + 1e-4 * r[d]).collect();
@@ -1625,7 +1648,7 @@ mod tests {
     #[test]
     fn hessian_from_the_gradients_contact_derivatives_equals_a_fresh_one() {
         let mut w = world::<2>(SCENE_2D);
-        let setup = w.setup().unwrap();
+        let setup = w.setup(w.bfemp().unwrap().integrator).unwrap();
         let n = setup.n_dofs;
         let r = noise(n, 5);
         let x: Vec<f64> = (0..n).map(|d| setup.x0[d] + 1e-4 * r[d]).collect();

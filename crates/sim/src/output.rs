@@ -52,8 +52,10 @@ pub struct Summary {
     pub frames: usize,
     /// Newton iterations in total.
     pub newton_iterations: usize,
-    /// Friction iterations in total.
+    /// Friction iterations in total (BFEMP).
     pub friction_iterations: usize,
+    /// Iterations of the augury contact steps in total (augury).
+    pub augury_iterations: usize,
     /// Newton iterations that used the exact Hessian (`solver.projection: "when_indefinite"`).
     pub exact_hessian_iterations: usize,
     /// Exact Hessians found indefinite (those iterations used the projected one).
@@ -298,7 +300,10 @@ impl Output {
         std::fs::create_dir_all(dir.join("frames")).map_err(io(dir))?;
         let mpath = dir.join("metrics.csv");
         let mut metrics = File::create(&mpath).map_err(io(&mpath))?;
-        let header = format!("{}\n", csv_header::<D>(&world.force_bodies()));
+        let header = format!(
+            "{}\n",
+            csv_header::<D>(&world.force_bodies(), world.augury().is_some())
+        );
         metrics.write_all(header.as_bytes()).map_err(io(&mpath))?;
         let mut pvds = Vec::new();
         if world.mpm.is_some() {

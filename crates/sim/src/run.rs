@@ -14,8 +14,8 @@ use crate::error::SimError;
 use crate::metrics::Metrics;
 use crate::output::{Output, OutputOptions, Summary};
 use crate::render::{PictureOptions, Pictures};
+use crate::report::StepReport;
 use crate::scene::Scene;
-use crate::step::StepReport;
 use crate::world::World;
 
 /// Options of a run.
@@ -136,12 +136,12 @@ pub fn run_with<const D: usize>(
         status: "running".into(),
         particles: world.mpm.as_ref().map_or(0, |m| m.x.len()),
         fem_vertices: world.fem.iter().map(|b| b.x.len()).sum(),
-        method: if world.augury.is_some() {
+        method: if world.augury().is_some() {
             "augury".into()
         } else {
             "bfemp".into()
         },
-        augury: world.augury.as_ref().map(|a| crate::output::AugurySummary {
+        augury: world.augury().map(|a| crate::output::AugurySummary {
             grid_spacing: a.grid_spacing,
             stable_dt: a.stable_dt,
             boundary_particles: a.system.num_particles(),
@@ -307,7 +307,7 @@ fn drive<const D: usize>(
             p.update(world)?;
         }
         inspect(world, &m);
-        let msg = if world.augury.is_some() {
+        let msg = if world.augury().is_some() {
             format!("t = {:.4} s", world.time)
         } else {
             format!(
@@ -374,6 +374,7 @@ fn record(m: &mut Metrics, summary: &mut Summary, report: &StepReport) {
     m.record_step(report);
     summary.newton_iterations += report.newton_iterations;
     summary.friction_iterations += report.friction_iterations;
+    summary.augury_iterations += report.augury_iterations;
     summary.exact_hessian_iterations += s.exact_iterations;
     summary.exact_hessian_rejections += s.exact_rejections;
     summary.reused_hessians += s.reused_hessians;

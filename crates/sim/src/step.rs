@@ -4,42 +4,16 @@
 
 use femp_kernels::transfer;
 use femp_solver::{
-    Forcing, HessianStrategy, LinearSolver, NewtonParams, Ordering, SolveStats, Threads,
+    Forcing, HessianStrategy, Integrator, LinearSolver, NewtonParams, Ordering, Threads,
 };
 use nalgebra::{SMatrix, SVector};
 
 use crate::error::SimError;
 use crate::objective::{Penalty, StepObjective};
+use crate::report::StepReport;
 use crate::scene::BoundaryCondition;
 use crate::scene::spec::{LinearSpec, ProjectionSpec};
-use crate::world::{Transfer, World};
-
-/// What a step did.
-#[derive(Clone, Debug, Default)]
-pub struct StepReport {
-    /// Newton iterations over all friction iterations.
-    pub newton_iterations: usize,
-    /// Friction (lagging) iterations (1 when there is no friction).
-    pub friction_iterations: usize,
-    /// Whether the friction iteration converged (always true without friction).
-    pub friction_converged: bool,
-    /// Active contact terms at the end of the step.
-    pub contact_terms: usize,
-    /// Smallest particle/vertex–boundary distance among active terms (∞ if none).
-    pub min_distance: f64,
-    /// Solver statistics summed over the step's solves.
-    pub stats: SolveStats,
-    /// Seconds in the transfers (stencils, P2G, G2P, advection).
-    pub transfers_s: f64,
-    /// Seconds setting up the minimisation (DOFs, predictor, boundaries, initial guess).
-    pub setup_s: f64,
-    /// Seconds in the objective's parts.
-    pub objective: crate::objective::ObjectiveTiming,
-    /// Per contact pair (`World::pairs` order) at the end of the step: `[barrier, friction]`
-    /// force on the pair's points (x, y, z; z = 0 in 2D), the facets' body feeling the opposite
-    /// (empty for augury).
-    pub pair_forces: Vec<[[f64; 3]; 2]>,
-}
+use crate::world::{MethodState, Transfer, World};
 
 /// The unknowns of one step and what they start from (see [`World::setup`]).
 pub(crate) struct StepSetup<const D: usize> {
@@ -62,17 +36,32 @@ pub(crate) struct StepSetup<const D: usize> {
 impl<const D: usize> World<D> {
     /// Advance by one time step.
     pub fn step(&mut self) -> Result<StepReport, SimError> {
-        if self.augury.is_some() {
-            // A bounded amount of explicit work: the interrupt flag is checked before it.
-            if self.interrupted() {
-                return Err(SimError::Interrupted {
-                    step: self.step,
-                    time: self.time,
-                });
+        let integrator = match &mut self.method {
+            MethodState::Bfemp(b) => b.integrator,
+            MethodState::Augury(aug) => {
+                // A bounded amount of explicit work: the interrupt flag is checked before it.
+                if self
+                    .interrupt
+                    .as_ref()
+                    .is_some_and(|f| f.load(std::sync::atomic::Ordering::Relaxed))
+                {
+                    return Err(SimError::Interrupted {
+                        step: self.step,
+                        time: self.time,
+                    });
+                }
+                let report = aug.step(&mut self.fem, self.step, self.time)?;
+                self.time = aug.system.time;
+                self.step += 1;
+                return Ok(report);
             }
-            return self.step_augury();
-        }
+        };
         // BFEMP: the Newton solver checks the interrupt flag before every iteration.
+        self.step_bfemp(integrator)
+    }
+
+    /// One BFEMP step with `integrator`.
+    fn step_bfemp(&mut self, integrator: Integrator) -> Result<StepReport, SimError> {
         let dt = self.dt;
         let t1 = self.time + dt;
         let fail = |world: &World<D>, message: String| SimError::StepFailed {
@@ -97,7 +86,7 @@ impl<const D: usize> World<D> {
             penalties,
             x_hat,
             transfers_s,
-        } = self.setup()?;
+        } = self.setup(integrator)?;
         let clock_setup = clock.elapsed().as_secs_f64() - transfers_s;
         let clock = std::time::Instant::now();
         // 3. The friction loop around the minimisation.
@@ -129,7 +118,7 @@ impl<const D: usize> World<D> {
             reuse_hessian_below: self.scene.spec.solver.reuse_hessian_below,
             ..Default::default()
         };
-        let w = self.integrator.weight(dt);
+        let w = integrator.weight(dt);
         let any_friction = self.pairs.iter().any(|p| p.friction.mu > 0.0);
         let mut report = StepReport {
             friction_converged: true,
@@ -184,7 +173,10 @@ impl<const D: usize> World<D> {
         obj.prefer_exact = params.hessian == HessianStrategy::ExactWhenDefinite;
         for j in 0..max_fric {
             report.friction_iterations = j + 1;
-            let stats = self
+            let MethodState::Bfemp(bfemp) = &mut self.method else {
+                unreachable!("step_bfemp runs BFEMP worlds only");
+            };
+            let stats = bfemp
                 .newton
                 .minimize_to(&mut obj, &mut x, &fixed, &target, &params)
                 .map_err(|e| match e {
@@ -261,7 +253,7 @@ impl<const D: usize> World<D> {
         // 4. Velocities and accelerations.
         let mut v1 = v0.clone();
         let mut a1 = a0.clone();
-        self.integrator.update(dt, &x, &x_hat, &mut v1, &mut a1);
+        integrator.update(dt, &x, &x_hat, &mut v1, &mut a1);
 
         // 5. Grid-to-particle and advection.
         let clock = std::time::Instant::now();
@@ -284,7 +276,7 @@ impl<const D: usize> World<D> {
                     time: self.time,
                     message: e.to_string(),
                 })?;
-            if self.integrator.needs_acceleration() {
+            if integrator.needs_acceleration() {
                 let ga1: Vec<SVector<f64, D>> = (0..n_grid)
                     .map(|i| SVector::from_column_slice(&a1[i * D..i * D + D]))
                     .collect();
@@ -317,7 +309,7 @@ impl<const D: usize> World<D> {
 
     /// Steps 1–2 of a time step: particle-to-grid, the DOF layout (active grid nodes, then FEM
     /// vertices), prescribed targets, level-set boundary conditions and the predictor.
-    pub(crate) fn setup(&mut self) -> Result<StepSetup<D>, SimError> {
+    pub(crate) fn setup(&mut self, integrator: Integrator) -> Result<StepSetup<D>, SimError> {
         let dt = self.dt;
         let t1 = self.time + dt;
         // 1. Particle-to-grid.
@@ -349,7 +341,7 @@ impl<const D: usize> World<D> {
                     message: e.to_string(),
                 })?;
             grid_a = vec![SVector::zeros(); n_grid];
-            if self.integrator.needs_acceleration() {
+            if integrator.needs_acceleration() {
                 transfer::p2g_vector(&m.stencils, &m.mass, &m.a, &mut grid_a)
                     .and_then(|_| transfer::normalise(&grid_m, &mut grid_a))
                     .map_err(|e| SimError::StepFailed {
@@ -448,7 +440,7 @@ impl<const D: usize> World<D> {
         }
         // Predictor.
         let mut x_hat = vec![0.0; n_dofs];
-        self.integrator.predictor(dt, &x0, &v0, &a0, &mut x_hat);
+        integrator.predictor(dt, &x0, &v0, &a0, &mut x_hat);
 
         Ok(StepSetup {
             n_grid,
@@ -484,7 +476,11 @@ impl<const D: usize> StepSetup<D> {
             &self.mass,
             &self.x_hat,
             &self.x0,
-            world.integrator.weight(world.dt),
+            world
+                .bfemp()
+                .expect("a BFEMP world")
+                .integrator
+                .weight(world.dt),
             world.gravity,
             &self.penalties,
         )

@@ -139,7 +139,7 @@ fn explicit_run(
         .fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), x| {
             (l.min(x[1]), h.max(x[1]))
         });
-    let stable = probe.augury.as_ref().map_or(f64::NAN, |a| a.stable_dt);
+    let stable = probe.augury().map_or(f64::NAN, |a| a.stable_dt);
     let dt = 0.5 * stable;
     let label = format!("disk_{}_s{s}", method.replace(' ', "_"));
     let (r, samples) = ctx.run_scene_keep::<2, Option<(f64, f64)>>(
@@ -149,7 +149,7 @@ fn explicit_run(
             // The fixed plate's reaction (kinematic in the correction; the facet side of the
             // penalty pairs): its vertices lie on the contact line, and the plate has no
             // velocity field of its own for the correction to smooth.
-            let plate = &w.augury.as_ref()?.system.bodies[1];
+            let plate = &w.augury()?.system.bodies[1];
             let (a, f) = hertz::moment_width(
                 plate
                     .x

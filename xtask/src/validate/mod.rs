@@ -455,8 +455,7 @@ impl Ctx {
             "probe",
         )?)?;
         world
-            .augury
-            .as_ref()
+            .augury()
             .map(|a| a.stable_dt)
             .ok_or_else(|| anyhow::anyhow!("the probe scene is not an augury scene"))
     }

@@ -332,6 +332,50 @@ fn patch<const D: usize>(mesh: &Mesh<D>, a: &SMatrix<f64, D, D>) {
     assert!(total.norm() <= 1e-10 * scale * x.len() as f64);
 }
 
+/// The shared-reference gradient with a caller's buffer gives the body's own gradient bit for
+/// bit and adds to what `out` holds; it reuses the buffer across meshes of other sizes, and names a
+/// wrong length instead of panicking.
+#[test]
+fn gradient_with_a_callers_buffer_equals_the_bodys_own() {
+    let mat = NeoHookean::from_young_poisson(1e5, 0.3).unwrap();
+    let big = generate::cuboid(Vector3::zeros(), Vector3::new(1.0, 0.8, 0.6), 6, 5, 4).unwrap();
+    let small = generate::cuboid(Vector3::zeros(), Vector3::new(1.0, 1.0, 1.0), 2, 2, 2).unwrap();
+    let mut forces = Vec::new();
+    for mesh in [&big, &small, &big] {
+        let mut body = ElasticBody::new(mesh, mat).unwrap();
+        let x: Vec<_> = mesh
+            .vertices()
+            .iter()
+            .enumerate()
+            .map(|(i, v)| {
+                v * 1.05 + Vector3::new(0.01 * (i % 7) as f64, 0.0, -0.02 * (i % 3) as f64)
+            })
+            .collect();
+        let mut own = vec![Vector3::zeros(); x.len()];
+        body.add_gradient(&x, 0.7, &mut own).unwrap();
+        let mut shared = vec![Vector3::zeros(); x.len()];
+        body.add_gradient_with(&x, 0.7, &mut forces, &mut shared)
+            .unwrap();
+        assert_eq!(forces.len(), body.num_elements());
+        assert_eq!(own, shared);
+        // It adds to what `out` holds.
+        let offset = Vector3::new(1.0, -2.0, 0.5);
+        let mut shifted = vec![offset; x.len()];
+        body.add_gradient_with(&x, 0.7, &mut forces, &mut shifted)
+            .unwrap();
+        for (o, s) in own.iter().zip(&shifted) {
+            assert!(
+                (s - o - offset).amax() <= 1e-12 * (1.0 + o.amax()),
+                "{s} vs {o}"
+            );
+        }
+        let err = body
+            .add_gradient_with(&x, 0.7, &mut forces, &mut shared[1..])
+            .unwrap_err();
+        assert!(err.to_string().contains("gradient output"), "{err}");
+    }
+}
+
 #[test]
 fn lumped_masses_sum_to_total_mass() {
     let m = generate::ring(Vector2::zeros(), 3.0, 4.0, 5, 120).unwrap();

@@ -59,7 +59,7 @@ fn scene_run_matches_the_library_reference_scene() {
         let mut v = fixture();
         v["augury"]["model"] = json!(name);
         let probe = World::<2>::build(parse(&v).unwrap()).unwrap();
-        let dt = 0.5 * probe.augury.as_ref().unwrap().stable_dt;
+        let dt = 0.5 * probe.augury().unwrap().stable_dt;
         v["time"]["dt"] = json!(dt);
         v["time"]["duration"] = json!(dt * reference.steps as f64);
         let dir = tempfile::tempdir().unwrap();
@@ -121,9 +121,30 @@ fn metrics_show_exact_momentum_through_the_collision() {
         touched,
         "the blocks never came close: the test saw no collision"
     );
-    // The CSV holds the same rows.
+    // The CSV holds the same rows, with the augury step's own solver columns: its
+    // iterations, not BFEMP's Newton/friction/linear-solver counters.
     let csv = std::fs::read_to_string(dir.path().join("metrics.csv")).unwrap();
     assert_eq!(csv.lines().count(), r.metrics.len() + 1);
+    let header: Vec<&str> = csv.lines().next().unwrap().split(',').collect();
+    assert!(header.contains(&"augury_iterations"), "{header:?}");
+    for bfemp_only in ["newton_iterations", "friction_iterations", "pcg_iterations"] {
+        assert!(!header.contains(&bfemp_only), "{header:?}");
+    }
+    let col = header
+        .iter()
+        .position(|c| *c == "augury_iterations")
+        .unwrap();
+    let per_step: Vec<usize> = csv
+        .lines()
+        .skip(2)
+        .map(|l| l.split(',').nth(col).unwrap().parse().unwrap())
+        .collect();
+    assert!(per_step.iter().all(|&k| k >= 1), "{per_step:?}");
+    assert_eq!(per_step.iter().sum::<usize>(), r.summary.augury_iterations);
+    assert_eq!(
+        (r.summary.newton_iterations, r.summary.friction_iterations),
+        (0, 0)
+    );
 }
 
 /// A fully prescribed plate moving at 0.5 m/s pushes a free block: the plate follows its script

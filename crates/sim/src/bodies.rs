@@ -1,0 +1,341 @@
+//! The bodies a world is made of, whatever the method: MPM particles on their grid, FEM
+//! bodies, contact pairs (which points may touch which facets) and level-set boundaries; and
+//! the point-in-body and point–facet queries both methods and the metrics use.
+
+use femp_contact::ContactPotential;
+use femp_contact::friction::FrictionParams;
+use femp_fem::{Boundary, ElasticBody, Material, Mesh};
+use femp_kernels::{Grid, Stencils};
+use nalgebra::{SMatrix, SVector};
+
+use crate::build::inside_simplex;
+use crate::motion::Motion;
+use crate::scene::{BoundaryCondition, BoundaryShape};
+
+/// Which particle–grid transfer MPM uses.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Transfer {
+    /// APIC.
+    Apic,
+    /// PIC.
+    Pic,
+    /// FLIP with this ratio.
+    Flip(f64),
+}
+
+/// All MPM particles (every MPM body) on one grid.
+pub struct Mpm<const D: usize> {
+    /// The grid.
+    pub grid: Grid<D>,
+    /// The current stencils (rebuilt each step).
+    pub stencils: Stencils<D>,
+    /// Transfer scheme.
+    pub transfer: Transfer,
+    /// Positions.
+    pub x: Vec<SVector<f64, D>>,
+    /// Velocities.
+    pub v: Vec<SVector<f64, D>>,
+    /// APIC matrices.
+    pub b: Vec<SMatrix<f64, D, D>>,
+    /// Deformation gradients.
+    pub f: Vec<SMatrix<f64, D, D>>,
+    /// Accelerations (Newmark).
+    pub a: Vec<SVector<f64, D>>,
+    /// Masses.
+    pub mass: Vec<f64>,
+    /// Rest volumes.
+    pub volume: Vec<f64>,
+    /// Contact weights ω_q.
+    pub weight: Vec<f64>,
+    /// Body of each particle (index into `bodies`).
+    pub body: Vec<u16>,
+    /// MPM bodies: name, material, particle range.
+    pub bodies: Vec<MpmBody>,
+    /// Contact force on each particle (barrier and friction) at the end of the last step; zero
+    /// before the first.
+    pub contact_force: Vec<SVector<f64, D>>,
+}
+
+impl<const D: usize> Mpm<D> {
+    /// Each particle's von Mises stress and Cauchy stress `σ = P Fᵀ / det F` from its body's
+    /// material, one Piola evaluation each (what the frames write as `von_mises` and `stress`).
+    pub fn stresses(&self) -> (Vec<f64>, Vec<SMatrix<f64, D, D>>) {
+        use femp_fem::Hyperelastic;
+        (0..self.x.len())
+            .map(|p| {
+                let mat = &self.bodies[self.body[p] as usize].material;
+                let piola = mat.first_piola(&self.f[p]);
+                (
+                    femp_fem::material::von_mises(&piola, &self.f[p]),
+                    femp_fem::material::cauchy(&piola, &self.f[p]),
+                )
+            })
+            .unzip()
+    }
+
+    /// Each particle's current volume `V_p det F_p` (`volume` holds the rest volumes).
+    pub fn current_volume(&self) -> Vec<f64> {
+        self.volume
+            .iter()
+            .zip(&self.f)
+            .map(|(v, f)| v * femp_fem::linalg::det(f))
+            .collect()
+    }
+}
+
+/// One MPM body.
+#[derive(Clone, Debug)]
+pub struct MpmBody {
+    /// Name.
+    pub name: String,
+    /// Material.
+    pub material: Material,
+    /// Its particles are `range.0..range.1`.
+    pub range: (usize, usize),
+}
+
+/// One FEM body.
+pub struct FemBody<const D: usize> {
+    /// Name.
+    pub name: String,
+    /// Mesh (rest configuration).
+    pub mesh: Mesh<D>,
+    /// Elasticity.
+    pub elastic: ElasticBody<D, Material>,
+    /// Material.
+    pub material: Material,
+    /// Current positions.
+    pub x: Vec<SVector<f64, D>>,
+    /// Velocities.
+    pub v: Vec<SVector<f64, D>>,
+    /// Accelerations (Newmark).
+    pub a: Vec<SVector<f64, D>>,
+    /// Lumped masses.
+    pub mass: Vec<f64>,
+    /// Vertex positions at t = 0.
+    pub initial: Vec<SVector<f64, D>>,
+    /// Prescribed vertex sets and their motion.
+    pub prescribed: Vec<(Vec<usize>, Motion<D>)>,
+    /// Per vertex: prescribed?
+    pub fixed: Vec<bool>,
+    /// All vertices prescribed (adds no unknowns, BFEMP §4.4).
+    pub fully_prescribed: bool,
+    /// Boundary.
+    pub boundary: Boundary<D>,
+    /// Boundary facets as `u32` triples (for contact).
+    pub facets: Vec<[u32; 3]>,
+    /// Per boundary vertex (same order as `boundary.vertices()`): lumped boundary measure, the
+    /// contact weight of the vertex when it acts as a "particle" against another FEM body.
+    pub vertex_weight: Vec<f64>,
+    /// Contact force on each vertex (barrier and friction, as a point and as a facet vertex) at
+    /// the end of the last step; zero before the first.
+    pub contact_force: Vec<SVector<f64, D>>,
+}
+
+impl<const D: usize> FemBody<D> {
+    /// The body's centre of mass and the velocity of it (mass-weighted means of the vertices'
+    /// positions and velocities, lumped masses).
+    pub fn centre_of_mass(&self) -> (SVector<f64, D>, SVector<f64, D>) {
+        let m: f64 = self.mass.iter().sum();
+        let weighted = |q: &[SVector<f64, D>]| {
+            q.iter()
+                .zip(&self.mass)
+                .map(|(q, mm)| q * *mm)
+                .sum::<SVector<f64, D>>()
+                / m
+        };
+        (weighted(&self.x), weighted(&self.v))
+    }
+}
+
+/// Who the "particles" of a contact pair are.
+#[derive(Clone, Debug)]
+pub enum Points {
+    /// Particles `range` of the MPM set.
+    Mpm {
+        /// Particle index range.
+        range: (usize, usize),
+    },
+    /// Boundary vertices of FEM body `body`.
+    Fem {
+        /// Body index.
+        body: usize,
+    },
+}
+
+/// A contact interaction: points against the boundary of FEM body `facets_of`.
+pub struct Pair<const D: usize> {
+    /// Names, for errors and output.
+    pub names: (String, String),
+    /// The points.
+    pub points: Points,
+    /// The FEM body whose boundary facets the points are tested against.
+    pub facets_of: usize,
+    /// Barrier potential over that boundary.
+    pub potential: ContactPotential<D>,
+    /// Friction (μ may be 0: then no friction work at all).
+    pub friction: FrictionParams,
+}
+
+/// A level-set boundary acting on grid nodes.
+pub struct LevelSet<const D: usize> {
+    /// Geometry.
+    pub shape: BoundaryShape,
+    /// Condition.
+    pub condition: BoundaryCondition,
+    /// Motion (translation of the level set).
+    pub motion: Motion<D>,
+}
+
+impl<const D: usize> LevelSet<D> {
+    /// Signed distance-like value at `x` and time `t` (negative = solid), and the unit normal
+    /// pointing into the free region.
+    pub fn eval(&self, x: &SVector<f64, D>, t: f64) -> (f64, SVector<f64, D>) {
+        let shift = self.motion.at(t).t;
+        let p = x - shift;
+        match &self.shape {
+            BoundaryShape::HalfPlane { point, normal } => {
+                let n = SVector::<f64, D>::from_column_slice(normal).normalize();
+                ((p - SVector::from_column_slice(point)).dot(&n), n)
+            }
+            BoundaryShape::Cosine {
+                amplitude,
+                wavelength,
+                offset,
+                solid_above,
+            } => {
+                let k = std::f64::consts::TAU / wavelength;
+                let y = offset + amplitude * (k * p[0]).cos();
+                let dy = -amplitude * k * (k * p[0]).sin();
+                // Normal of the curve pointing up, normalised; φ ≈ vertical gap scaled.
+                let mut n = SVector::<f64, D>::zeros();
+                n[0] = -dy;
+                n[1] = 1.0;
+                let len = n.norm();
+                n /= len;
+                let phi = (p[1] - y) / len;
+                if *solid_above { (-phi, -n) } else { (phi, n) }
+            }
+        }
+    }
+
+    /// Velocity of the boundary at time `t`.
+    pub fn velocity(&self, t: f64) -> SVector<f64, D> {
+        self.motion.velocity(t, &SVector::zeros())
+    }
+}
+
+/// Distance from `p` to a boundary facet (an edge in 2D, a triangle in 3D).
+pub(crate) fn point_facet_distance<const D: usize>(
+    p: &SVector<f64, D>,
+    f: &[u32; 3],
+    x: &[SVector<f64, D>],
+) -> f64 {
+    use femp_contact::distance::{point_edge, point_triangle};
+    let v = |i: u32| x[i as usize];
+    if D == 2 {
+        point_edge::sq_dist(p, &v(f[0]), &v(f[1])).sqrt()
+    } else {
+        let t = |q: SVector<f64, D>| nalgebra::Vector3::from_fn(|a, _| q[a]);
+        point_triangle::sq_dist(&t(*p), &t(v(f[0])), &t(v(f[1])), &t(v(f[2]))).sqrt()
+    }
+}
+
+/// The first point inside (or on) an element of `mesh` at positions `x`: (point, element).
+pub fn first_inside<const D: usize>(
+    points: &[SVector<f64, D>],
+    mesh: &Mesh<D>,
+    x: &[SVector<f64, D>],
+) -> Option<(usize, usize)> {
+    inside_elements(points, mesh, x).into_iter().next()
+}
+
+/// Every point inside (or on) an element: (point, element), via a hash of element boxes.
+pub fn inside_elements<const D: usize>(
+    points: &[SVector<f64, D>],
+    mesh: &Mesh<D>,
+    x: &[SVector<f64, D>],
+) -> Vec<(usize, usize)> {
+    if points.is_empty() || mesh.num_cells() == 0 {
+        return Vec::new();
+    }
+    let cells = mesh.cells();
+    let boxes: Vec<(SVector<f64, D>, SVector<f64, D>)> = cells
+        .iter()
+        .map(|c| {
+            let mut lo = x[c[0]];
+            let mut hi = lo;
+            for &v in &c[1..=D] {
+                lo = lo.inf(&x[v]);
+                hi = hi.sup(&x[v]);
+            }
+            (lo, hi)
+        })
+        .collect();
+    // Cell size: the median element extent (an outlier — a stretched element of a corrupted
+    // mesh — must not make the table coarse, nor cover billions of cells).
+    let mut extents: Vec<f64> = boxes.iter().map(|(l, h)| (h - l).amax()).collect();
+    let mid = extents.len() / 2;
+    let size = *extents.select_nth_unstable_by(mid, f64::total_cmp).1;
+    let cell = if size > 0.0 && size.is_finite() {
+        size
+    } else {
+        1.0
+    };
+    // Elements spanning more cells than this are tested against every point instead.
+    const MAX_CELLS_PER_ELEMENT: usize = 4096;
+    let mut big = Vec::new();
+    // Only elements that reach the points' bounding box can hold one (bodies apart or barely
+    // touching — the usual case when this runs every step — skip the table almost entirely).
+    let (plo, phi) = points
+        .iter()
+        .fold((points[0], points[0]), |(l, h), p| (l.inf(p), h.sup(p)));
+    let reaches = |lo: &SVector<f64, D>, hi: &SVector<f64, D>| {
+        (0..D).all(|k| lo[k] <= phi[k] && hi[k] >= plo[k])
+    };
+    if !boxes.iter().any(|(lo, hi)| reaches(lo, hi)) {
+        return Vec::new();
+    }
+    let mut table: std::collections::HashMap<[i64; D], Vec<usize>> =
+        std::collections::HashMap::new();
+    for (e, (lo, hi)) in boxes.iter().enumerate() {
+        if !reaches(lo, hi) {
+            continue;
+        }
+        let a: [i64; D] = std::array::from_fn(|k| (lo[k] / cell).floor() as i64);
+        let b: [i64; D] = std::array::from_fn(|k| (hi[k] / cell).floor() as i64);
+        let n = (0..D).try_fold(1usize, |n, k| {
+            let span = usize::try_from(b[k].checked_sub(a[k])?.checked_add(1)?).ok()?;
+            n.checked_mul(span)
+        });
+        let Some(n) = n.filter(|&n| n <= MAX_CELLS_PER_ELEMENT) else {
+            big.push(e);
+            continue;
+        };
+        for flat in 0..n {
+            let mut rem = flat;
+            let key: [i64; D] = std::array::from_fn(|k| {
+                let span = (b[k] - a[k] + 1) as usize;
+                let o = rem % span;
+                rem /= span;
+                a[k] + o as i64
+            });
+            table.entry(key).or_default().push(e);
+        }
+    }
+    let mut out = Vec::new();
+    for (p, x0) in points.iter().enumerate() {
+        let key: [i64; D] = std::array::from_fn(|k| (x0[k] / cell).floor() as i64);
+        let hashed = table.get(&key).map_or(&[][..], Vec::as_slice);
+        for &e in hashed.iter().chain(&big) {
+            let (lo, hi) = &boxes[e];
+            if (0..D).all(|k| x0[k] >= lo[k] && x0[k] <= hi[k])
+                && inside_simplex(x0, &cells[e][..D + 1], x)
+            {
+                out.push((p, e));
+                break;
+            }
+        }
+    }
+    out
+}
