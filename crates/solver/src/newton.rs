@@ -736,14 +736,7 @@ impl Newton {
         let mut solved = false;
         let mut loose = false;
         for attempt in 0..2 {
-            self.prescribed_part(fixed, target, x);
-            let t = Instant::now();
-            let out = self
-                .pcg
-                .solve(&self.lin.csc, &self.rhs, &mut self.sol, eta, max_it);
-            state.stats.pcg_s += t.elapsed().as_secs_f64();
-            state.stats.pcg_iterations += out.iterations();
-            if out.converged() {
+            if self.cg_solve(&mut state.stats, problem, x, eta, max_it) {
                 self.rhs.copy_from_slice(&self.sol);
                 solved = true;
             }
@@ -772,15 +765,9 @@ impl Newton {
             if fixed_max.max(free_max) / params.dt < params.tolerance {
                 // The loose solution waits in `trial` (free until the line search).
                 self.trial[..nf].copy_from_slice(&self.rhs);
-                self.prescribed_part(fixed, target, x);
-                let t = Instant::now();
-                let out = self
-                    .pcg
-                    .solve(&self.lin.csc, &self.rhs, &mut self.sol, rtol, max_it);
-                state.stats.pcg_s += t.elapsed().as_secs_f64();
-                state.stats.pcg_iterations += out.iterations();
+                let converged = self.cg_solve(&mut state.stats, problem, x, rtol, max_it);
                 state.stats.pcg_tightened += 1;
-                if out.converged() {
+                if converged {
                     self.rhs.copy_from_slice(&self.sol);
                 } else {
                     // Keep the loose direction (a descent direction all the same), but it
@@ -811,6 +798,27 @@ impl Newton {
             exact: exact && factorized,
             loose,
         })
+    }
+
+    /// Conjugate gradients on the built matrix for the right-hand side of the direction
+    /// ([`Newton::prescribed_part`]) to relative accuracy `eta`, the solution in `sol`;
+    /// whether it converged.
+    fn cg_solve(
+        &mut self,
+        stats: &mut SolveStats,
+        problem: &Problem,
+        x: &[f64],
+        eta: f64,
+        max_it: usize,
+    ) -> bool {
+        self.prescribed_part(problem.fixed, problem.target, x);
+        let t = Instant::now();
+        let out = self
+            .pcg
+            .solve(&self.lin.csc, &self.rhs, &mut self.sol, eta, max_it);
+        stats.pcg_s += t.elapsed().as_secs_f64();
+        stats.pcg_iterations += out.iterations();
+        out.converged()
     }
 
     /// The free part of the direction into `rhs` by the factorisation; an exact Hessian
