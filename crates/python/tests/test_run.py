@@ -45,8 +45,12 @@ def test_ctrl_c_stops_a_run_and_keeps_its_outputs(tmp_path, fixtures):
     """SIGINT to a Python process inside femp.run: KeyboardInterrupt within a step or so, and
     summary.json says `interrupted` with every metrics row whole."""
     out = tmp_path / "out"
+    # Python turns SIGINT into KeyboardInterrupt only if SIGINT was not ignored when it started
+    # — and a job started with `&` by a non-interactive shell (a CI script run in the
+    # background) starts with it ignored — so the child installs the handler itself.
     script = textwrap.dedent(f"""
-        import femp, sys
+        import femp, signal, sys
+        signal.signal(signal.SIGINT, signal.default_int_handler)
         s = femp.Scene.load({os.path.join(fixtures, "colliding_rings.json")!r})
         try:
             femp.run(s, {str(out)!r}, frames=False)
