@@ -204,6 +204,19 @@ fn inconsistent_scenes_are_named() {
         &["contact.pairs[0].bodies[1]", "no body is called `plank`"],
     );
 
+    // A barrier distance as large as a body (the block is 0.4 m across): refused, named —
+    // found by the fuzz harness, where d̂ = 10 m on the §6.7 cube made one Newton iteration
+    // take minutes. A d̂ ten times the base's is still a gap.
+    let mut v = base();
+    v["contact"]["dhat"] = json!(0.5);
+    expect_error(&v, &["contact.dhat", "`block`", "not smaller than"]);
+    let mut v = base();
+    v["contact"]["pairs"] = json!([{ "bodies": ["plate", "block"], "dhat": 10.0 }]);
+    expect_error(&v, &["contact.pairs[0].dhat", "`block`"]);
+    let mut v = base();
+    v["contact"]["dhat"] = json!(0.05);
+    assert_eq!(error_of(&v, Path::new(".")), None);
+
     let mut v = base();
     v["bodies"][1]["prescribed"][0]["motion"] =
         json!([{ "until": 1.0, "velocity": [1, 0] }, { "until": 0.5 }]);
