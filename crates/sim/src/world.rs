@@ -405,10 +405,11 @@ impl<const D: usize> World<D> {
                             .fold((*first, *first), |(l, h), p| (l.inf(p), h.sup(p)));
                         (hi - lo).max()
                     };
-                    let (size, small) = if extent(si) <= extent(sj) {
-                        (extent(si), names[i])
+                    let (ei, ej) = (extent(si), extent(sj));
+                    let (size, small) = if ei <= ej {
+                        (ei, names[i])
                     } else {
-                        (extent(sj), names[j])
+                        (ej, names[j])
                     };
                     if size > 0.0 && dhat >= size {
                         let field = match c.pairs.iter().position(|p| {
