@@ -298,57 +298,56 @@ pub fn corrupt(bytes: &[u8], op: u32, at: u32) -> Vec<u8> {
     b
 }
 
-/// When the watchdog raises the interrupt flag.
+/// How long after the world is built the watchdog raises the interrupt flag.
 const WATCHDOG: Duration = Duration::from_secs(2);
 
-/// How long a case may take once its watchdog raised the interrupt flag.
+/// How long a case may go on once its watchdog raised the interrupt flag (the interrupt acts
+/// between Newton iterations and between steps).
 const GRACE: Duration = Duration::from_secs(30);
+
+/// How long parsing, validation and building (which the interrupt does not reach) may take: far
+/// above any case's seconds, even on a loaded machine — a case past it is a hang.
+const BUILD: Duration = Duration::from_secs(240);
 
 /// Scenes estimated above this are built but not stepped.
 const STEP_MEMORY: f64 = 300e6;
 
-/// Parse, validate, estimate and build the scene text, then take two steps with a watchdog:
-/// an error is fine, a panic or a hang is not. Returns the steps taken (0 for an error).
+/// Parse, validate, estimate and build the scene text, then take two steps with a watchdog that
+/// raises the interrupt flag [`WATCHDOG`] after the build: an error is fine, a panic or a hang
+/// is not (the build past [`BUILD`], the steps past [`GRACE`] after the flag went up; the two
+/// are timed apart, so a slow build on a loaded machine is not mistaken for an ignored
+/// interrupt). Returns the steps taken (0 for an error).
 fn exercise(text: &str, base_dir: PathBuf) -> Result<usize, String> {
     let started = Instant::now();
-    let outcome = std::panic::catch_unwind(|| -> Result<usize, SimError> {
-        let mut s = scene::parse(text, "fuzz.json", base_dir, "fuzz")?;
-        // Small limits keep a mutated scene that is merely large from making the suite slow.
-        s.limits = Limits {
-            memory_bytes: 1.5e9,
-            steps: 1e7,
-        };
-        let estimate = scene::size::estimate(&s)?;
-        scene::size::check(&estimate, &s.limits)?;
-        if estimate.memory_bytes > STEP_MEMORY {
-            // Built, not stepped: steps of the large fixtures take seconds each.
-            return match s.spec.dimension {
-                2 => World::<2>::build(s).map(|_| 0),
-                _ => World::<3>::build(s).map(|_| 0),
+    let mut timing = Timing::default();
+    let outcome = std::panic::catch_unwind(std::panic::AssertUnwindSafe(
+        || -> Result<usize, SimError> {
+            let mut s = scene::parse(text, "fuzz.json", base_dir, "fuzz")?;
+            // Small limits keep a mutated scene that is merely large from making the suite slow.
+            s.limits = Limits {
+                memory_bytes: 1.5e9,
+                steps: 1e7,
             };
-        }
-        let flag = Arc::new(AtomicBool::new(false));
-        // The watchdog: after WATCHDOG the flag goes up, as Ctrl-C would.
-        let (done, wait) = std::sync::mpsc::channel::<()>();
-        let watchdog = {
-            let flag = flag.clone();
-            std::thread::spawn(move || {
-                if wait.recv_timeout(WATCHDOG).is_err() {
-                    flag.store(true, Ordering::Relaxed);
-                }
-            })
-        };
-        let steps = match s.spec.dimension {
-            2 => take_steps::<2>(s, flag),
-            _ => take_steps::<3>(s, flag),
-        };
-        let _ = done.send(());
-        let _ = watchdog.join();
-        steps
-    });
-    let elapsed = started.elapsed();
-    if elapsed > WATCHDOG + GRACE {
-        return Err(format!("took {elapsed:?}: the interrupt did not stop it"));
+            let estimate = scene::size::estimate(&s)?;
+            scene::size::check(&estimate, &s.limits)?;
+            let step = estimate.memory_bytes <= STEP_MEMORY;
+            // Built, not stepped, above STEP_MEMORY: steps of the large fixtures take seconds.
+            match s.spec.dimension {
+                2 => build_and_step::<2>(s, step, &mut timing),
+                _ => build_and_step::<3>(s, step, &mut timing),
+            }
+        },
+    ));
+    let built = timing.built.unwrap_or_else(|| started.elapsed());
+    if built > BUILD {
+        return Err(format!("parsing and building took {built:?}"));
+    }
+    if let Some(late) = timing.after_interrupt
+        && late > GRACE
+    {
+        return Err(format!(
+            "went on {late:?} after the interrupt: the interrupt did not stop it"
+        ));
     }
     match outcome {
         Ok(steps) => Ok(steps.unwrap_or(0)),
@@ -362,9 +361,51 @@ fn exercise(text: &str, base_dir: PathBuf) -> Result<usize, String> {
     }
 }
 
-fn take_steps<const D: usize>(s: scene::Scene, flag: Arc<AtomicBool>) -> Result<usize, SimError> {
-    let mut w = World::<D>::build(s)?;
+/// What [`exercise`] times: from the start to the built world, and from the watchdog's
+/// interrupt (if it fired) to the end of the steps.
+#[derive(Default)]
+struct Timing {
+    built: Option<Duration>,
+    after_interrupt: Option<Duration>,
+}
+
+/// Build the world and, if `step`, take two steps under the watchdog.
+fn build_and_step<const D: usize>(
+    s: scene::Scene,
+    step: bool,
+    timing: &mut Timing,
+) -> Result<usize, SimError> {
+    let started = Instant::now();
+    let built = World::<D>::build(s);
+    timing.built = Some(started.elapsed());
+    let mut w = built?;
+    if !step {
+        return Ok(0);
+    }
+    let flag = Arc::new(AtomicBool::new(false));
+    // The watchdog: after WATCHDOG the flag goes up, as Ctrl-C would, and says when.
+    let (done, wait) = std::sync::mpsc::channel::<()>();
+    let watchdog = {
+        let flag = flag.clone();
+        std::thread::spawn(move || {
+            if wait.recv_timeout(WATCHDOG).is_err() {
+                flag.store(true, Ordering::Relaxed);
+                Some(Instant::now())
+            } else {
+                None
+            }
+        })
+    };
     w.set_interrupt(Some(flag));
+    let steps = take_steps(&mut w);
+    let _ = done.send(());
+    if let Ok(Some(raised)) = watchdog.join() {
+        timing.after_interrupt = Some(raised.elapsed());
+    }
+    steps
+}
+
+fn take_steps<const D: usize>(w: &mut World<D>) -> Result<usize, SimError> {
     let _ = w.measure();
     for k in 0..2 {
         if let Err(e) = w.step() {
