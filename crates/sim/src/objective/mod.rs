@@ -1,0 +1,342 @@
+//! The incremental potential of one BFEMP step (eq. 38) as a [`femp_solver::Objective`]:
+//!
+//! `E(x) = ½‖x − x̂‖²_M + w (Ψ_FEM + Ψ_MPM + B + D − Σ m g·x) + penalties`, `w = 2αβΔt²`,
+//!
+//! over the DOFs `x = (grid node positions, FEM vertex positions)`. MPM particles are not
+//! unknowns: `x_q = x_qⁿ + Σ_i w_iq u_i` and `F_q = (I + Σ_i u_i ∇w_iqᵀ) F_qⁿ` with
+//! `u_i = x_i − X_i` (eqs. 25, 29), so every particle term reaches the grid by the chain rule.
+//! The feasible step is the minimum of CCD (particles and FEM vertices against FEM boundaries),
+//! det F > 0 of FEM elements, and det F > 0 of MPM particles.
+//!
+//! One type per term, each with its energy, gradient, Hessian and step bound, over one
+//! [`Configuration`](config::Configuration) of the bodies at the current `x`:
+//! [`Inertia`](inertia::Inertia) (inertia, gravity, slip penalties),
+//! [`ParticleElasticity`](particles::ParticleElasticity) (MPM, on the grid),
+//! [`ElementElasticity`](elements::ElementElasticity) (FEM, femp-fem's own derivatives) and
+//! [`Contact`](contact::Contact) (barrier and lagged friction of every pair, with the term
+//! derivatives the gradient and the Hessian at one state share).
+
+use femp_solver::{Objective, StepBound, StepLimit, Triplets};
+use nalgebra::SVector;
+use std::time::Instant;
+
+use crate::bodies::{FemBody, Mpm, Pair};
+
+mod config;
+mod contact;
+mod elements;
+mod inertia;
+mod particles;
+
+use config::{Configuration, Dofs};
+use contact::Contact;
+use elements::ElementElasticity;
+use inertia::Inertia;
+pub use inertia::Penalty;
+use particles::ParticleElasticity;
+
+/// Wall-clock seconds spent in the parts of the objective, accumulated over a step.
+#[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize)]
+pub struct ObjectiveTiming {
+    /// Particle positions and deformation gradients from the grid DOFs (every evaluation).
+    pub unpack_s: f64,
+    /// Energy evaluations (line search), excluding unpacking.
+    pub energy_s: f64,
+    /// MPM elasticity: gradient and Hessian (tangents, chain rule, scatter to the grid).
+    pub mpm_s: f64,
+    /// FEM elasticity: gradient and Hessian.
+    pub fem_s: f64,
+    /// Contact and friction: broad phase, terms, derivatives, scatter.
+    pub contact_s: f64,
+    /// Grid Hessian blocks to triplets.
+    pub emit_s: f64,
+    /// Continuous collision detection of the line-search filter.
+    pub ccd_s: f64,
+    /// det F > 0 bounds of the line-search filter (particles and elements).
+    pub inversion_s: f64,
+}
+
+impl ObjectiveTiming {
+    /// Add another timing.
+    pub fn add(&mut self, o: &Self) {
+        self.unpack_s += o.unpack_s;
+        self.energy_s += o.energy_s;
+        self.mpm_s += o.mpm_s;
+        self.fem_s += o.fem_s;
+        self.contact_s += o.contact_s;
+        self.emit_s += o.emit_s;
+        self.ccd_s += o.ccd_s;
+        self.inversion_s += o.inversion_s;
+    }
+}
+
+/// Seconds since `clock`, and restart it.
+#[inline]
+fn lap(clock: &mut Instant) -> f64 {
+    let now = Instant::now();
+    let dt = now.duration_since(*clock).as_secs_f64();
+    *clock = now;
+    dt
+}
+
+/// One step's objective: the sum of its terms over one configuration. Built by the stepper;
+/// borrows the world's state.
+pub struct StepObjective<'a, const D: usize> {
+    mpm: Option<&'a Mpm<D>>,
+    fem: &'a [FemBody<D>],
+    /// DOF values at the start of the step (grid node positions, FEM xⁿ).
+    x_start: &'a [f64],
+    dofs: Dofs,
+    /// The integrator's weight `w` of every potential but inertia.
+    w: f64,
+    cfg: Configuration<D>,
+    inertia: Inertia<'a, D>,
+    particles: ParticleElasticity<'a, D>,
+    elements: ElementElasticity<'a, D>,
+    contact: Contact<'a, D>,
+    /// Grid increments and particle displacements along a direction ([`Objective::max_step`]).
+    motion: (Vec<SVector<f64, D>>, Vec<SVector<f64, D>>),
+    /// The gradient computes the barrier's exact Hessian for the cache (the solver asks for
+    /// [`Objective::exact_hessian`] first: `HessianStrategy::ExactWhenDefinite`).
+    pub(crate) prefer_exact: bool,
+    /// Where the time went.
+    pub(crate) timing: ObjectiveTiming,
+    /// Number of active contact terms and smallest contact distance at the last gradient.
+    pub(crate) last_contacts: (usize, f64),
+}
+
+impl<'a, const D: usize> StepObjective<'a, D> {
+    #[allow(clippy::too_many_arguments)]
+    pub(crate) fn new(
+        mpm: Option<&'a Mpm<D>>,
+        fem: &'a [FemBody<D>],
+        pairs: &'a [Pair<D>],
+        n_grid: usize,
+        fem_offset: Vec<usize>,
+        n_dofs: usize,
+        mass: &'a [f64],
+        x_hat: &'a [f64],
+        x_start: &'a [f64],
+        w: f64,
+        gravity: SVector<f64, D>,
+        penalties: &'a [Penalty<D>],
+    ) -> Self {
+        Self {
+            mpm,
+            fem,
+            x_start,
+            dofs: Dofs {
+                n_grid,
+                fem_offset,
+                n: n_dofs,
+            },
+            w,
+            cfg: Configuration::new(fem),
+            inertia: Inertia {
+                mass,
+                x_hat,
+                gravity,
+                penalties,
+            },
+            particles: ParticleElasticity::new(mpm),
+            elements: ElementElasticity::new(fem),
+            contact: Contact::new(mpm, fem, pairs),
+            motion: (Vec::new(), Vec::new()),
+            prefer_exact: false,
+            timing: ObjectiveTiming::default(),
+            last_contacts: (0, f64::INFINITY),
+        }
+    }
+
+    /// Move the configuration to `x` (once per `x`).
+    fn unpack(&mut self, x: &[f64]) {
+        let clock = Instant::now();
+        if self
+            .cfg
+            .update(x, self.x_start, self.mpm, self.fem, &self.dofs)
+        {
+            self.timing.unpack_s += clock.elapsed().as_secs_f64();
+        }
+    }
+
+    /// Recompute the lagged friction operator at `x` (Algorithm 1, lines 5 and 9).
+    pub(crate) fn lag_friction(&mut self, x: &[f64]) {
+        self.unpack(x);
+        self.cfg.touch();
+        self.contact.lag_friction(&self.cfg);
+    }
+
+    /// The contact force of every pair at `x` ([`Contact::pair_forces`]).
+    pub(crate) fn pair_forces(
+        &mut self,
+        x: &[f64],
+        on_particles: &mut [SVector<f64, D>],
+        on_vertices: &mut [Vec<SVector<f64, D>>],
+    ) -> Vec<[SVector<f64, D>; 2]> {
+        self.unpack(x);
+        self.contact
+            .pair_forces(&self.cfg, on_particles, on_vertices)
+    }
+
+    /// Number of active contact terms and smallest contact distance over all pairs at `x`.
+    pub(crate) fn contact_summary(&mut self, x: &[f64]) -> (usize, f64) {
+        self.unpack(x);
+        self.contact.summary(&self.cfg)
+    }
+
+    /// The Hessian with PSD-projected element, particle and barrier terms, or (`exact`) the
+    /// exact one. Friction's lagged operator is PSD by construction and the same in both.
+    fn build_hessian(&mut self, x: &[f64], h: &mut Triplets, exact: bool) {
+        self.unpack(x);
+        let (w, dofs, cfg) = (self.w, &self.dofs, &self.cfg);
+        self.inertia.hessian(h);
+        // The particles' blocks (parallel, into the grid Hessian) alongside the elements'
+        // triplets (into `h`) and the contact derivatives.
+        let (particles, elements, contact) =
+            (&mut self.particles, &mut self.elements, &mut self.contact);
+        let (mpm_s, (fem_s, contact_s)) = rayon::join(
+            || {
+                let clock = Instant::now();
+                particles.hessian(cfg, dofs, w, exact);
+                clock.elapsed().as_secs_f64()
+            },
+            || {
+                let mut clock = Instant::now();
+                elements.hessian(cfg, dofs, w, exact, h);
+                let fem_s = lap(&mut clock);
+                contact.prepare_hessian(cfg, dofs, w, exact);
+                (fem_s, lap(&mut clock))
+            },
+        );
+        self.timing.mpm_s += mpm_s;
+        self.timing.fem_s += fem_s;
+        self.timing.contact_s += contact_s;
+        // The contact terms' blocks (particle–particle ones into the grid Hessian).
+        let mut clock = Instant::now();
+        self.contact
+            .scatter_hessian(&self.dofs, w, h, &mut self.particles.gh);
+        self.timing.contact_s += lap(&mut clock);
+        self.particles.emit(h);
+        self.timing.emit_s += lap(&mut clock);
+    }
+
+    fn energy_impl(&mut self, x: &[f64]) -> f64 {
+        self.unpack(x);
+        let w = self.w;
+        let e = self.inertia.energy(x, w);
+        // MPM elasticity (parallel) alongside the elements' and the contact terms' energies.
+        let (cfg, particles, elements, contact) = (
+            &self.cfg,
+            &self.particles,
+            &self.elements,
+            &mut self.contact,
+        );
+        let (el, rest) = rayon::join(
+            || particles.energy(cfg),
+            || {
+                let e = elements.add_energy(cfg, w, 0.0);
+                if e.is_finite() {
+                    contact.add_energy(cfg, w, e)
+                } else {
+                    e
+                }
+            },
+        );
+        if !el.is_finite() {
+            return f64::INFINITY;
+        }
+        e + w * el + rest
+    }
+}
+
+impl<const D: usize> Objective for StepObjective<'_, D> {
+    fn num_dofs(&self) -> usize {
+        self.dofs.n
+    }
+
+    fn energy(&mut self, x: &[f64]) -> f64 {
+        let clock = Instant::now();
+        let e = self.energy_impl(x);
+        self.timing.energy_s += clock.elapsed().as_secs_f64();
+        e
+    }
+
+    fn gradient(&mut self, x: &[f64], g: &mut [f64]) {
+        self.unpack(x);
+        let mut clock = Instant::now();
+        let (w, dofs, cfg) = (self.w, &self.dofs, &self.cfg);
+        self.inertia.set_gradient(x, w, g);
+        self.particles.add_gradient(cfg, dofs, w, g);
+        self.timing.mpm_s += lap(&mut clock);
+        self.elements.add_gradient(cfg, dofs, w, g);
+        self.timing.fem_s += lap(&mut clock);
+        self.last_contacts = self
+            .contact
+            .add_gradient(cfg, dofs, w, self.prefer_exact, g);
+        self.timing.contact_s += lap(&mut clock);
+    }
+
+    fn hessian(&mut self, x: &[f64], h: &mut Triplets) {
+        self.build_hessian(x, h, false);
+    }
+
+    fn exact_hessian(&mut self, x: &[f64], h: &mut Triplets) -> bool {
+        self.build_hessian(x, h, true);
+        true
+    }
+
+    fn hessian_terms_unchanged(&mut self) -> bool {
+        self.contact.hessian_terms_unchanged()
+    }
+
+    fn max_step(&mut self, x: &[f64], p: &[f64]) -> StepBound {
+        self.unpack(x);
+        let clock = Instant::now();
+        // Particle displacements along p (for CCD) and grid increments (for det F); if they
+        // cannot be interpolated (a non-finite direction), no step is known to be safe.
+        let (pg, dq) = &mut self.motion;
+        let interpolated = self.particles.motion(p, &self.dofs, pg, dq);
+        let setup_s = clock.elapsed().as_secs_f64();
+        // The particles' det F bound (parallel) alongside the elements' and CCD (sequential).
+        let (cfg, dofs, particles, elements, contact) = (
+            &self.cfg,
+            &self.dofs,
+            &self.particles,
+            &mut self.elements,
+            &mut self.contact,
+        );
+        let ((mpm_alpha, mpm_s), (fem_alpha, fem_s, ccd_alpha, ccd_s)) = rayon::join(
+            || {
+                let t = Instant::now();
+                (particles.det_bound(cfg, pg), t.elapsed().as_secs_f64())
+            },
+            || {
+                let t = Instant::now();
+                let fem = elements.det_bound(cfg, dofs, p);
+                let fem_s = t.elapsed().as_secs_f64();
+                let ccd = contact.ccd_bound(cfg, dofs, p, dq);
+                (fem, fem_s, ccd, t.elapsed().as_secs_f64() - fem_s)
+            },
+        );
+        self.timing.inversion_s += setup_s + mpm_s + fem_s;
+        self.timing.ccd_s += ccd_s;
+        let mut best = StepBound::UNLIMITED;
+        for (alpha, limit) in [
+            (mpm_alpha, StepLimit::DetF),
+            (fem_alpha, StepLimit::DetF),
+            (ccd_alpha, StepLimit::Ccd),
+            (if interpolated { 1.0 } else { 0.0 }, StepLimit::Other),
+        ] {
+            if alpha < best.alpha {
+                best = StepBound {
+                    alpha: alpha.max(0.0),
+                    limit: Some(limit),
+                };
+            }
+        }
+        best
+    }
+}
+
+#[cfg(test)]
+mod tests;

@@ -1,0 +1,398 @@
+//! The step objective's derivatives against central finite differences, on scenes that
+//! exercise every term: MPM and FEM elasticity, inertia, gravity, barrier contact of
+//! particles and of FEM vertices, lagged friction, and an oblique slip penalty.
+
+use std::path::Path;
+
+use femp_solver::{Objective, Triplets};
+
+use crate::scene;
+use crate::world::World;
+
+/// Pseudo-random numbers in [−1, 1] (deterministic).
+fn noise(n: usize, seed: u64) -> Vec<f64> {
+    let mut s = seed;
+    (0..n)
+        .map(|_| {
+            s = s
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            ((s >> 11) as f64 / (1u64 << 53) as f64) * 2.0 - 1.0
+        })
+        .collect()
+}
+
+fn world<const D: usize>(json: &str) -> World<D> {
+    let s = scene::parse(json, "fd.json", Path::new(".").to_path_buf(), "fd").unwrap();
+    World::<D>::build(s).unwrap()
+}
+
+/// A 2D scene: an MPM block whose lowest particles are within d̂ (5 mm) of a free FEM block, a second FEM block
+/// touching it from the side, friction on both pairs, gravity and an oblique slip wall.
+const SCENE_2D: &str = r#"{
+  "dimension": 2, "gravity": [0.3, -9.81],
+  "time": { "dt": 0.01, "duration": 1 },
+  "mpm": { "grid_spacing": 0.1 },
+  "bodies": [
+    { "kind": "mpm", "name": "block", "shape": { "box": { "min": [-0.2, -0.02], "max": [0.2, 0.3] } },
+      "material": { "E": 1e4, "nu": 0.3, "rho": 1000 }, "velocity": [0.5, -0.2], "angular_velocity": 1.0 },
+    { "kind": "fem", "name": "base", "mesh": { "rectangle": { "min": [-0.5, -0.2], "max": [0.5, 0.0], "cells": [5, 2] } },
+      "material": { "E": 1e4, "nu": 0.3, "rho": 1000 } },
+    { "kind": "fem", "name": "side", "mesh": { "rectangle": { "min": [0.503, -0.2], "max": [0.7, 0.1], "cells": [2, 3] } },
+      "material": { "model": "linear", "E": 2e4, "nu": 0.2, "rho": 500 } }
+  ],
+  "contact": { "dhat": 0.01, "kappa": 1e3, "friction": 0.4, "eps_v": 0.01 },
+  "boundaries": [ { "shape": { "half_plane": { "point": [-0.6, 0], "normal": [0.8, 0.6] } }, "condition": "slip" } ]
+}"#;
+
+/// 3D: one particle per cell (at cell centres, 5 cm above the FEM block) within d̂ = 6 cm.
+const SCENE_3D: &str = r#"{
+  "dimension": 3, "gravity": [0, 0, -9.81],
+  "time": { "dt": 0.01, "duration": 1 },
+  "mpm": { "grid_spacing": 0.1 },
+  "bodies": [
+    { "kind": "mpm", "name": "block", "shape": { "box": { "min": [-0.1, -0.1, 0.001], "max": [0.1, 0.1, 0.2] } },
+      "particles_per_cell": 1,
+      "material": { "E": 1e4, "nu": 0.3, "rho": 1000 }, "velocity": [0.5, 0, -0.2] },
+    { "kind": "fem", "name": "base", "mesh": { "cuboid": { "min": [-0.3, -0.3, -0.1], "max": [0.3, 0.3, 0.0], "cells": [3, 3, 1] } },
+      "material": { "E": 1e4, "nu": 0.3, "rho": 1000 } }
+  ],
+  "contact": { "dhat": 0.06, "kappa": 1e3, "friction": 0.4, "eps_v": 0.01 }
+}"#;
+
+/// Gradient against central differences of the energy at a perturbed feasible state,
+/// with friction lagged at the start. Returns the number of active contact terms.
+fn check_gradient<const D: usize>(json: &str, amplitude: f64) -> usize {
+    let mut w = world::<D>(json);
+    let setup = w.setup(w.bfemp().unwrap().integrator).unwrap();
+    let mut obj = setup.objective(&w);
+    obj.lag_friction(&setup.x0);
+    let r = noise(setup.n_dofs, 7);
+    let x: Vec<f64> = (0..setup.n_dofs)
+        .map(|d| setup.x0[d] + amplitude * r[d])
+        .collect();
+    let e0 = obj.energy(&x);
+    assert!(e0.is_finite(), "perturbed state infeasible");
+    let mut g = vec![0.0; setup.n_dofs];
+    obj.gradient(&x, &mut g);
+    let (terms, _) = obj.last_contacts;
+    let gmax = g.iter().fold(0.0f64, |a, v| a.max(v.abs()));
+    let h = 1e-7;
+    let mut xp = x.clone();
+    let mut worst = 0.0f64;
+    for d in 0..setup.n_dofs {
+        xp[d] = x[d] + h;
+        let ep = obj.energy(&xp);
+        xp[d] = x[d] - h;
+        let em = obj.energy(&xp);
+        xp[d] = x[d];
+        let fd = (ep - em) / (2.0 * h);
+        let err = (fd - g[d]).abs() / (gmax * 1e-5 + g[d].abs().max(fd.abs()));
+        worst = worst.max(err);
+        assert!(
+            err < 1e-4,
+            "dof {d} of {}: analytic {} vs FD {fd} (|g|max {gmax:e})",
+            setup.n_dofs,
+            g[d]
+        );
+    }
+    assert!(worst.is_finite());
+    terms
+}
+
+#[test]
+fn gradient_matches_finite_differences_2d() {
+    let terms = check_gradient::<2>(SCENE_2D, 1e-4);
+    assert!(
+        terms > 10,
+        "the scene must have active contact terms ({terms})"
+    );
+}
+
+#[test]
+fn gradient_matches_finite_differences_3d() {
+    let terms = check_gradient::<3>(SCENE_3D, 1e-4);
+    assert!(
+        terms >= 4,
+        "the scene must have active contact terms ({terms})"
+    );
+}
+
+/// Hessian against central differences of the gradient where no PSD projection acts:
+/// inertia, stretched elasticity, gravity, penalties (bodies apart, no contact).
+fn check_hessian<const D: usize>(json: &str) {
+    let mut w = world::<D>(json);
+    let setup = w.setup(w.bfemp().unwrap().integrator).unwrap();
+    let n = setup.n_dofs;
+    let mut obj = setup.objective(&w);
+    // A uniform 5 % expansion (every F ≈ 1.05 I, where the neo-Hookean tangent is positive
+    // definite and its projection is the identity) plus a small random perturbation.
+    let r = noise(n, 11);
+    let x: Vec<f64> = (0..n).map(|d| 1.05 * setup.x0[d] + 1e-4 * r[d]).collect();
+    let mut t = Triplets::default();
+    obj.hessian(&x, &mut t);
+    assert_eq!(obj.last_contacts.0, 0, "scene must be contact-free");
+    // Without contact terms, the grid's and the elements' blocks come as their upper
+    // triangle only (the solver ignores the rest; half the triplets to assemble).
+    assert!(
+        t.iter().all(|(r, c, _)| r <= c),
+        "a triplet below the diagonal"
+    );
+    assert_gradient_derivative(&mut obj, &x, &dense(&t, n), 1e-6);
+}
+
+/// `hd` (dense, n × n) equals the central difference (step `h`) of the objective's
+/// gradient at `x`, to 1e-5 of its largest entry plus 1e-4 relative.
+fn assert_gradient_derivative<const D: usize>(
+    obj: &mut super::StepObjective<'_, D>,
+    x: &[f64],
+    hd: &[f64],
+    h: f64,
+) {
+    let n = x.len();
+    let hmax = hd.iter().fold(0.0f64, |a, v| a.max(v.abs()));
+    let (mut gp, mut gm) = (vec![0.0; n], vec![0.0; n]);
+    let mut xp = x.to_vec();
+    for c in 0..n {
+        xp[c] = x[c] + h;
+        gp.iter_mut().for_each(|v| *v = 0.0);
+        obj.gradient(&xp, &mut gp);
+        xp[c] = x[c] - h;
+        gm.iter_mut().for_each(|v| *v = 0.0);
+        obj.gradient(&xp, &mut gm);
+        xp[c] = x[c];
+        for r in 0..n {
+            let fd = (gp[r] - gm[r]) / (2.0 * h);
+            let an = hd[r * n + c];
+            assert!(
+                (fd - an).abs() <= 1e-5 * hmax + 1e-4 * an.abs(),
+                "H[{r}][{c}]: analytic {an} vs FD {fd} (max {hmax:e})"
+            );
+        }
+    }
+}
+
+#[test]
+fn hessian_matches_finite_differences_without_contact_2d() {
+    check_hessian::<2>(
+        &SCENE_2D
+            .replace("-0.02], \"max\": [0.2, 0.3]", "0.1], \"max\": [0.2, 0.3]")
+            .replace("0.503", "0.6"),
+    );
+}
+
+#[test]
+fn hessian_matches_finite_differences_without_contact_3d() {
+    check_hessian::<3>(
+        &SCENE_3D
+            .replace("0.001], \"max\"", "0.1], \"max\"")
+            .replace("0.06", "0.01"),
+    );
+}
+
+/// `exact_hessian` against central differences of the gradient with contact terms active
+/// (frictionless: friction's lagged operator is the same in both Hessians), and different
+/// from the projected one there; the gradient's kept contact derivatives are re-made when
+/// the other kind of Hessian is asked for (exact, projected, exact again).
+fn check_exact_hessian<const D: usize>(json: &str) {
+    let mut w = world::<D>(json);
+    let setup = w.setup(w.bfemp().unwrap().integrator).unwrap();
+    let n = setup.n_dofs;
+    let mut obj = setup.objective(&w);
+    let r = noise(n, 13);
+    let x: Vec<f64> = (0..n).map(|d| setup.x0[d] + 1e-4 * r[d]).collect();
+    let mut g = vec![0.0; n];
+    obj.prefer_exact = true;
+    obj.gradient(&x, &mut g);
+    assert!(obj.last_contacts.0 > 0, "the scene must have contact terms");
+    let mut t = Triplets::default();
+    assert!(obj.exact_hessian(&x, &mut t));
+    // Contact blocks, like the grid's and the elements', come as their upper triangle.
+    assert!(
+        t.iter().all(|(r, c, _)| r <= c),
+        "a triplet below the diagonal"
+    );
+    let he = dense(&t, n);
+    let mut t = Triplets::default();
+    obj.hessian(&x, &mut t);
+    let hp = dense(&t, n);
+    let mut t = Triplets::default();
+    obj.exact_hessian(&x, &mut t);
+    assert_eq!(dense(&t, n), he, "exact again after the projected one");
+    let hmax = he.iter().fold(0.0f64, |a, v| a.max(v.abs()));
+    let diff = he
+        .iter()
+        .zip(&hp)
+        .fold(0.0f64, |a, (u, v)| a.max((u - v).abs()));
+    assert!(diff > 1e-6 * hmax, "projection inactive: {diff:e}");
+    assert_gradient_derivative(&mut obj, &x, &he, 1e-7);
+}
+
+#[test]
+fn exact_hessian_matches_finite_differences_with_contact_2d() {
+    check_exact_hessian::<2>(&SCENE_2D.replace("\"friction\": 0.4", "\"friction\": 0"));
+}
+
+#[test]
+fn exact_hessian_matches_finite_differences_with_contact_3d() {
+    check_exact_hessian::<3>(&SCENE_3D.replace("\"friction\": 0.4", "\"friction\": 0"));
+}
+
+/// The symmetric matrix the solver sees: the triplets' upper triangle, mirrored (entries
+/// below the diagonal are ignored by the solver, and the grid Hessian leaves them out).
+fn dense(t: &Triplets, n: usize) -> Vec<f64> {
+    let mut hd = vec![0.0; n * n];
+    for (r, c, v) in t.iter().filter(|&(r, c, _)| r <= c) {
+        hd[r * n + c] += v;
+        if r != c {
+            hd[c * n + r] += v;
+        }
+    }
+    hd
+}
+
+/// `hessian_terms_unchanged` (the solver's licence to reuse a Hessian) holds at the
+/// Hessian's own point and at a nearby one with the same contacts, and fails before any
+/// Hessian and once the contact set changed (the particles moved out of reach).
+#[test]
+fn hessian_terms_unchanged_tracks_the_contact_set() {
+    let mut w = world::<2>(SCENE_2D);
+    let setup = w.setup(w.bfemp().unwrap().integrator).unwrap();
+    let n = setup.n_dofs;
+    let r = noise(n, 11);
+    let x: Vec<f64> = (0..n).map(|d| setup.x0[d] + 1e-4 * r[d]).collect();
+    let mut obj = setup.objective(&w);
+    obj.lag_friction(&setup.x0);
+    let mut g = vec![0.0; n];
+    obj.gradient(&x, &mut g);
+    assert!(
+        obj.last_contacts.0 > 10,
+        "contacts: {}",
+        obj.last_contacts.0
+    );
+    assert!(!obj.hessian_terms_unchanged(), "no Hessian yet");
+    let mut t = Triplets::default();
+    obj.hessian(&x, &mut t);
+    obj.gradient(&x, &mut g);
+    assert!(obj.hessian_terms_unchanged());
+    let near: Vec<f64> = (0..n).map(|d| x[d] + 1e-9 * r[(d + 1) % n]).collect();
+    obj.gradient(&near, &mut g);
+    assert!(obj.hessian_terms_unchanged());
+    // The grid (and so every particle) 100 m away, out of the contact distance.
+    let away: Vec<f64> = (0..n)
+        .map(|d| x[d] + if d < obj.dofs.n_grid * 2 { 100.0 } else { 0.0 })
+        .collect();
+    let near_contacts = obj.last_contacts.0;
+    obj.gradient(&away, &mut g);
+    // What is left: the two FEM bodies' contact with each other.
+    assert!(
+        obj.last_contacts.0 < near_contacts,
+        "{near_contacts} → {}",
+        obj.last_contacts.0
+    );
+    assert!(!obj.hessian_terms_unchanged());
+    obj.hessian(&away, &mut t);
+    obj.gradient(&away, &mut g);
+    assert!(obj.hessian_terms_unchanged());
+}
+
+/// The Hessian built from the derivatives the gradient kept equals one computed afresh, and
+/// a new friction operator or a new x invalidates what was kept.
+/// The Newton solver asks for the Hessian before the gradient: the gradient then scatters
+/// the contact derivatives the Hessian computed — bitwise the gradient computed afresh, with
+/// the same contact count and smallest distance, for either kind of Hessian, and not after
+/// the friction operator was lagged again.
+#[test]
+fn gradient_after_the_hessian_equals_a_fresh_one() {
+    let mut w = world::<2>(SCENE_2D);
+    let setup = w.setup(w.bfemp().unwrap().integrator).unwrap();
+    let n = setup.n_dofs;
+    let r = noise(n, 7);
+    let x: Vec<f64> = (0..n).map(|d| setup.x0[d] + 1e-4 * r[d]).collect();
+    let fresh = |lag_at: &[f64]| {
+        let mut obj = setup.objective(&w);
+        obj.lag_friction(lag_at);
+        let mut g = vec![0.0; n];
+        obj.gradient(&x, &mut g);
+        (g, obj.last_contacts)
+    };
+    let bits = |g: &[f64]| g.iter().map(|v| v.to_bits()).collect::<Vec<_>>();
+    for exact in [false, true] {
+        let mut obj = setup.objective(&w);
+        obj.lag_friction(&setup.x0);
+        let mut t = Triplets::default();
+        if exact {
+            obj.exact_hessian(&x, &mut t);
+        } else {
+            obj.hessian(&x, &mut t);
+        }
+        let mut g = vec![0.0; n];
+        obj.gradient(&x, &mut g);
+        let (g0, contacts) = fresh(&setup.x0);
+        assert!(contacts.0 > 10, "contact terms: {}", contacts.0);
+        assert_eq!(bits(&g), bits(&g0), "exact = {exact}");
+        assert_eq!(obj.last_contacts.0, contacts.0);
+        assert_eq!(obj.last_contacts.1.to_bits(), contacts.1.to_bits());
+        // Friction lagged again at x: the cached derivatives are stale.
+        obj.lag_friction(&x);
+        obj.gradient(&x, &mut g);
+        let (g1, _) = fresh(&x);
+        assert_eq!(bits(&g), bits(&g1), "relagged, exact = {exact}");
+        assert_ne!(
+            bits(&g1),
+            bits(&g0),
+            "the friction operator must matter here"
+        );
+    }
+}
+
+#[test]
+fn hessian_from_the_gradients_contact_derivatives_equals_a_fresh_one() {
+    let mut w = world::<2>(SCENE_2D);
+    let setup = w.setup(w.bfemp().unwrap().integrator).unwrap();
+    let n = setup.n_dofs;
+    let r = noise(n, 5);
+    let x: Vec<f64> = (0..n).map(|d| setup.x0[d] + 1e-4 * r[d]).collect();
+    let y: Vec<f64> = (0..n).map(|d| setup.x0[d] - 2e-4 * r[d]).collect();
+    let fresh = |lag_at: &[f64], at: &[f64]| {
+        let mut obj = setup.objective(&w);
+        obj.lag_friction(lag_at);
+        let mut t = Triplets::default();
+        obj.hessian(at, &mut t);
+        dense(&t, n)
+    };
+    let same = |a: &[f64], b: &[f64], what: &str| {
+        let m = a.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+        for (k, (u, v)) in a.iter().zip(b).enumerate() {
+            assert!((u - v).abs() <= 1e-12 * m, "{what}: entry {k}: {u} vs {v}");
+        }
+    };
+    let mut obj = setup.objective(&w);
+    obj.lag_friction(&setup.x0);
+    let mut g = vec![0.0; n];
+    obj.gradient(&x, &mut g);
+    assert!(
+        obj.last_contacts.0 > 10,
+        "contact terms: {}",
+        obj.last_contacts.0
+    );
+    let mut t = Triplets::default();
+    obj.hessian(&x, &mut t);
+    let cached = dense(&t, n);
+    same(&cached, &fresh(&setup.x0, &x), "kept derivatives");
+    // A different x after the gradient.
+    t = Triplets::default();
+    obj.hessian(&y, &mut t);
+    same(&dense(&t, n), &fresh(&setup.x0, &y), "new x");
+    // A new friction operator (lagged at the same x) between gradient and Hessian.
+    obj.gradient(&x, &mut g);
+    obj.lag_friction(&x);
+    t = Triplets::default();
+    obj.hessian(&x, &mut t);
+    let relagged = dense(&t, n);
+    same(&relagged, &fresh(&x, &x), "new friction operator");
+    assert!(
+        relagged.iter().zip(&cached).any(|(a, b)| a != b),
+        "the friction operator must matter in this scene"
+    );
+}
