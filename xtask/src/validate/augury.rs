@@ -9,7 +9,7 @@ use femp_augury::{ContactModel, TransferKind};
 use femp_kernels::Kernel;
 
 use super::charts::{self, Chart, Series};
-use super::{Check, Ctx, Outcome, Tier};
+use super::{Check, Ctx, Outcome, Pictures, Tier};
 
 /// §3.1: two particles in one cell, APIC vs PIC (the ODE of eqs. 49–50 and the same with the
 /// real operator on a 2D quadratic B-spline grid).
@@ -325,6 +325,7 @@ fn blocks_3d_long(ctx: &Ctx, base: &serde_json::Value, out: &mut Outcome) -> Res
             let (_, sep) = ctx.run_scene_probe::<3, f64>(
                 &label,
                 &serde_json::to_string(&v)?,
+                None,
                 centres_relative_velocity,
             )?;
             let rebound = sep.iter().position(|&s| s > 20.0);
@@ -389,9 +390,12 @@ pub fn blocks_impact_3d(ctx: &Ctx, out: &mut Outcome) -> Result<()> {
             let label = format!("blocks3d_{transfer}_{model}_h{h}");
             // Relative velocity of the centres of mass along the line joining them
             // (negative: approaching; ≈ 0: stuck together; positive: separating).
+            let pictures = (transfer == "apic" && model == "friction" && h == 1.0)
+                .then(|| Pictures::keys("APIC N = 1, h = 1", 3).gif());
             let (r, sep) = ctx.run_scene_probe::<3, f64>(
                 &label,
                 &serde_json::to_string(&v)?,
+                pictures,
                 centres_relative_velocity,
             )?;
             let m = &r.metrics;
@@ -623,8 +627,13 @@ fn ramp_3d(ctx: &Ctx, out: &mut Outcome, series: &mut Vec<Series>) -> Result<()>
             v["augury"]["tau"] = serde_json::json!(tau_steps * 2.5e-5 * h);
             let tau_name = tau_label(tau_steps);
             let label = format!("ramp3d_n{iterations}_t{tau_steps}_h{h}");
-            let (_, probes) =
-                ctx.run_scene_probe::<3, (f64, f64)>(&label, &serde_json::to_string(&v)?, |w| {
+            let pictures = (iterations == 1 && tau_steps == 1.0 && h == 1.0)
+                .then(|| Pictures::keys("Ramp, N = 1, h = 1", 2).last_only());
+            let (_, probes) = ctx.run_scene_probe::<3, (f64, f64)>(
+                &label,
+                &serde_json::to_string(&v)?,
+                pictures,
+                |w| {
                     let b = &w.fem[1];
                     let m: f64 = b.mass.iter().sum();
                     let cx =
@@ -634,7 +643,8 @@ fn ramp_3d(ctx: &Ctx, out: &mut Outcome, series: &mut Vec<Series>) -> Result<()>
                             .sum::<f64>()
                             / m;
                     (w.time, cx)
-                })?;
+                },
+            )?;
             let x0 = 1.0; // centre of mass at t = 0
             let (t, x) = *probes.last().expect("steps");
             let s = x - x0;

@@ -18,7 +18,7 @@ use anyhow::Result;
 use nalgebra::Vector2;
 
 use super::charts::{self, Chart, Series};
-use super::{Check, Ctx, Outcome, Status, Tier};
+use super::{Check, Ctx, Outcome, Pictures, Status, Tier};
 
 /// Separation that counts as buckled: a quarter of the inner ring's thickness (m).
 const BUCKLED: f64 = 0.5;
@@ -159,8 +159,16 @@ pub fn run(ctx: &Ctx) -> Result<Outcome> {
         let label = format!("buckling_mu{mu}");
         let mut surfaces: Option<Surfaces> = None;
         let spacing = h / (ppc as f64).sqrt();
-        let (r, samples) =
-            ctx.run_scene_keep::<2, Sample>(&label, &serde_json::to_string(&v)?, |w| {
+        let pictures = if mu == 0.0 {
+            Pictures::keys("μ = 0", 3).gif()
+        } else {
+            Pictures::keys(format!("μ = {mu}, end"), 2).last_only()
+        };
+        let (r, samples) = ctx.run_scene_keep::<2, Sample>(
+            &label,
+            &serde_json::to_string(&v)?,
+            Some(pictures),
+            |w| {
                 let gap = surfaces
                     .get_or_insert_with(|| Surfaces::of(w, spacing))
                     .gap(w);
@@ -182,7 +190,8 @@ pub fn run(ctx: &Ctx) -> Result<Outcome> {
                     crown,
                     gap,
                 }
-            })?;
+            },
+        )?;
         let reached = samples.last().map_or(0.0, |s| s.u);
         let penetrations = match &r {
             Ok(r) => r.metrics.iter().map(|m| m.penetrations).max().unwrap_or(0),

@@ -25,7 +25,7 @@ use anyhow::Result;
 use serde_json::json;
 
 use super::charts::{self, Chart, Series, Style};
-use super::{Check, Ctx, Outcome, Tier};
+use super::{Check, Ctx, Outcome, Pictures, Tier};
 
 const G: f64 = 9.81;
 const T_END: f64 = 1.0;
@@ -190,10 +190,17 @@ pub fn run(ctx: &Ctx) -> Result<Outcome> {
     for &h in hs {
         for &dt in bfemp_dts {
             let label = format!("compare_bfemp_h{h}_dt{dt}");
-            let (r, xs) = ctx.run_scene_probe::<2, f64>(&label, &bfemp_scene(h, dt), |w| {
-                let m = w.mpm.as_ref().expect("MPM block");
-                com_x(&m.mass, m.x.iter().map(|x| x[0]))
-            })?;
+            let pictures = (h == 0.125 && dt == 0.01).then(|| {
+                Pictures::keys(
+                    "Sliding block, BFEMP (MPM block on a FEM ramp), h = 0.125",
+                    3,
+                )
+            });
+            let (r, xs) =
+                ctx.run_scene_probe::<2, f64>(&label, &bfemp_scene(h, dt), pictures, |w| {
+                    let m = w.mpm.as_ref().expect("MPM block");
+                    com_x(&m.mass, m.x.iter().map(|x| x[0]))
+                })?;
             let s = xs.last().copied().unwrap_or(f64::NAN) - 1.0;
             points.push(Point {
                 method: "BFEMP",
@@ -224,9 +231,15 @@ pub fn run(ctx: &Ctx) -> Result<Outcome> {
             for &f in fractions {
                 let dt = f * stable;
                 let label = format!("compare_{}_h{h}_f{f}", method.replace(' ', "_"));
+                let pictures =
+                    (method == "augury APIC N = 10" && h == 0.125 && f == 0.5).then(|| {
+                        Pictures::keys("Sliding block, augury APIC N = 10, h = 0.125, end", 3)
+                            .last_only()
+                    });
                 let (r, xs) = ctx.run_scene_probe::<2, f64>(
                     &label,
                     &explicit_scene(h, dt, aug.clone()),
+                    pictures,
                     |w| {
                         let b = &w.fem[0];
                         com_x(&b.mass, b.x.iter().map(|x| x[0]))
@@ -365,11 +378,23 @@ fn impact(ctx: &Ctx, out: &mut Outcome) -> Result<()> {
         ] {
             for &dt in bfemp_dts {
                 let label = format!("impact_bfemp_{integrator}_h{h}_dt{dt}");
-                let (r, vs) =
-                    ctx.run_scene_keep::<2, f64>(&label, &impact_bfemp(h, dt, integrator), |w| {
+                let pictures =
+                    (integrator == "newmark" && h == 0.0625 && dt == 0.0025).then(|| {
+                        Pictures::keys(
+                            "Two bars impacting, BFEMP Newmark (MPM bar left, FEM bar right), \
+                         h = 0.0625",
+                            4,
+                        )
+                    });
+                let (r, vs) = ctx.run_scene_keep::<2, f64>(
+                    &label,
+                    &impact_bfemp(h, dt, integrator),
+                    pictures,
+                    |w| {
                         let m = w.mpm.as_ref().expect("MPM block");
                         velocity(&m.mass, &m.v)
-                    })?;
+                    },
+                )?;
                 record(&mut points, &mut failed, (method, h, dt), r, &vs);
             }
         }
@@ -395,6 +420,7 @@ fn impact(ctx: &Ctx, out: &mut Outcome) -> Result<()> {
                 let (r, vs) = ctx.run_scene_keep::<2, f64>(
                     &label,
                     &impact_explicit(h, dt, aug.clone()),
+                    None,
                     |w| velocity(&w.fem[0].mass, &w.fem[0].v),
                 )?;
                 record(&mut points, &mut failed, (method, h, dt), r, &vs);

@@ -24,7 +24,7 @@ use serde_json::json;
 use super::charts::{self, Chart, Series};
 use super::compare::{Point, fronts, max_penetrations, pareto_chart};
 use super::hertz::{self, A_LO, E, Load, NU, R};
-use super::{Check, Ctx, Outcome, Tier};
+use super::{Check, Ctx, Outcome, Pictures, Tier};
 
 /// Top plate speed (m/s).
 const SPEED: f64 = 1.0;
@@ -145,6 +145,13 @@ fn explicit_run(
     let (r, samples) = ctx.run_scene_keep::<2, Option<(f64, f64)>>(
         &label,
         &explicit_scene(s, Some(ys), dt, cfg.duration, augury),
+        (method == "augury APIC" && s == 0.02).then(|| {
+            Pictures::keys(
+                "Disk between plates, augury APIC (FEM disk, kinematic plates), s = 0.02, end",
+                2,
+            )
+            .last_only()
+        }),
         |w| {
             // The fixed plate's reaction (kinematic in the correction; the facet side of the
             // penalty pairs): its vertices lie on the contact line, and the plate has no
@@ -218,7 +225,9 @@ pub fn run(ctx: &Ctx) -> Result<Outcome> {
             dt: 1e-3,
             duration: cfg.duration,
         };
-        let (samples, _, r) = hertz::run_model(ctx, "linear", h, load)?;
+        let pictures = (h == 0.05)
+            .then(|| Pictures::keys("Disk between plates, BFEMP, h = 0.05, end", 2).last_only());
+        let (samples, _, r) = hertz::run_model(ctx, "linear", h, load, pictures)?;
         let samples: Vec<(f64, f64)> = samples.iter().map(|p| (p.a_moment, p.force)).collect();
         let (k, n) = fit(&samples, cfg.a_hi);
         if n < 3 {

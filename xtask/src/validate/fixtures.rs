@@ -37,7 +37,7 @@ pub fn run(ctx: &Ctx) -> Result<Outcome> {
         }
         let text = std::fs::read_to_string(dir.join(format!("{name}.json")))?;
         let label = format!("fixture_{name}");
-        match ctx.run_scene(&label, &text) {
+        match ctx.run_scene(&label, &text, None) {
             Ok(r) => {
                 let s = &r.summary;
                 out.checks.push(Check::holds(

@@ -15,7 +15,7 @@
 use anyhow::Result;
 
 use super::charts::{self, Chart, Series};
-use super::{Check, Ctx, Outcome, Tier};
+use super::{Check, Ctx, Outcome, Pictures, Tier};
 
 pub(super) const E: f64 = 1e10;
 pub(super) const NU: f64 = 0.3;
@@ -59,14 +59,16 @@ pub(super) fn moment_width(points: impl Iterator<Item = (f64, f64)>) -> (f64, f6
     (2.0 * var.sqrt(), s0)
 }
 
-/// One run: a sample per step with contact, the particle spacing and the run's summary.
+/// One run (and `pictures` of it): a sample per step with contact, the particle spacing and the
+/// run's summary.
 pub(super) fn run_model(
     ctx: &Ctx,
     model: &str,
     h: f64,
     load: Load,
+    pictures: Option<Pictures>,
 ) -> Result<(Vec<Sample>, f64, femp::run::RunResult)> {
-    run_variant(ctx, model, h, load, Variant::PAPER)
+    run_variant(ctx, model, h, load, Variant::PAPER, pictures)
 }
 
 /// The contact parameters a run departs from the paper's in (what limits the accuracy).
@@ -93,6 +95,7 @@ pub(super) fn run_variant(
     h: f64,
     load: Load,
     var: Variant,
+    pictures: Option<Pictures>,
 ) -> Result<(Vec<Sample>, f64, femp::run::RunResult)> {
     let dhat = var.dhat;
     let mut v: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(
@@ -138,8 +141,11 @@ pub(super) fn run_variant(
     if var.mu != Variant::PAPER.mu {
         label += &format!("_mu{}", var.mu);
     }
-    let (r, probes) =
-        ctx.run_scene_probe::<2, Option<Sample>>(&label, &serde_json::to_string(&v)?, |w| {
+    let (r, probes) = ctx.run_scene_probe::<2, Option<Sample>>(
+        &label,
+        &serde_json::to_string(&v)?,
+        pictures,
+        |w| {
             let mpm = w.mpm.as_ref()?;
             let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
             for x in &mpm.x {
@@ -163,7 +169,8 @@ pub(super) fn run_variant(
                 a_moment,
                 force: f,
             })
-        })?;
+        },
+    )?;
     anyhow::ensure!(
         r.summary.max_penetrations == 0,
         "{label}: {} penetrations",
@@ -206,7 +213,9 @@ pub fn run(ctx: &Ctx) -> Result<Outcome> {
             dt: 1e-2,
             duration,
         };
-        let (samples, _, _) = run_model(ctx, model, h, load)?;
+        let pictures = (model == "linear" && (h == 0.05 || h == 0.025))
+            .then(|| Pictures::keys(format!("Brazilian disk, h = {h}"), 2).last_only());
+        let (samples, _, _) = run_model(ctx, model, h, load, pictures)?;
         // The small-deformation range: a/R between 2 % and 10 %.
         let used: Vec<&Sample> = samples
             .iter()
@@ -322,7 +331,7 @@ pub fn run(ctx: &Ctx) -> Result<Outcome> {
             mu: 0.0,
             ..Variant::PAPER
         };
-        let (samples, _, _) = run_variant(ctx, "linear", h, load, var)?;
+        let (samples, _, _) = run_variant(ctx, "linear", h, load, var, None)?;
         let err = fit(&samples, "μ = 0", h)?;
         mu0_err.push(err);
         out.checks.push(Check::info(
@@ -352,7 +361,7 @@ pub fn run(ctx: &Ctx) -> Result<Outcome> {
         dhat: 1e-5,
         ..Variant::PAPER
     };
-    let (samples, _, _) = run_variant(ctx, "linear", h_var, load, var)?;
+    let (samples, _, _) = run_variant(ctx, "linear", h_var, load, var, None)?;
     let err = fit(&samples, "d̂ = 1e-5", h_var)?;
     out.checks.push(Check::info(
         &format!("linear, h = {h_var}, d̂ = 1e-5 m (the paper's 1e-4 / 10): F/a² relative error"),

@@ -196,12 +196,12 @@ pub struct Outcome {
     pub pictures: Vec<(String, Vec<PathBuf>)>,
 }
 
-/// A run whose scene pictures the report shows.
-struct Pictured {
-    /// The run's label.
-    label: &'static str,
+/// The scene pictures the report shows of one run, chosen where the experiment starts the run
+/// (`Pictures::keys("caption", 3).gif()`).
+#[derive(Clone, Debug)]
+pub struct Pictures {
     /// Caption in the report.
-    caption: &'static str,
+    caption: String,
     /// Key frames, evenly spaced from start to end.
     keys: usize,
     /// Show only the last key frame.
@@ -212,163 +212,41 @@ struct Pictured {
     up: Option<usize>,
 }
 
-/// Runs that get scene pictures in the report.
-const PICTURES: &[Pictured] = &[
-    Pictured {
-        label: "rings_apic",
-        caption: "MPM ring (left) against FEM ring (right), APIC",
-        keys: 4,
-        last_only: false,
-        gif: true,
-        up: None,
-    },
-    Pictured {
-        label: "sine_fem",
-        caption: "FEM sine boundary (BFEMP)",
-        keys: 4,
-        last_only: false,
-        gif: false,
-        up: None,
-    },
-    Pictured {
-        label: "sine_level_set",
-        caption: "Level-set sine boundary",
-        keys: 4,
-        last_only: true,
-        gif: false,
-        up: None,
-    },
-    Pictured {
-        label: "hertz_linear_h0.05",
-        caption: "Brazilian disk, h = 0.05",
-        keys: 2,
-        last_only: true,
-        gif: false,
-        up: None,
-    },
-    Pictured {
-        label: "hertz_linear_h0.025",
-        caption: "Brazilian disk, h = 0.025",
-        keys: 2,
-        last_only: true,
-        gif: false,
-        up: None,
-    },
-    Pictured {
-        label: "slope_mu_0.1",
-        caption: "Box on the slope, μ = 0.1",
-        keys: 3,
-        last_only: false,
-        gif: false,
-        up: None,
-    },
-    Pictured {
-        label: "buckling_mu0",
-        caption: "μ = 0",
-        keys: 3,
-        last_only: false,
-        gif: true,
-        up: None,
-    },
-    Pictured {
-        label: "buckling_mu0.2",
-        caption: "μ = 0.2, end",
-        keys: 2,
-        last_only: true,
-        gif: false,
-        up: None,
-    },
-    Pictured {
-        label: "buckling_mu0.5",
-        caption: "μ = 0.5, end",
-        keys: 2,
-        last_only: true,
-        gif: false,
-        up: None,
-    },
-    Pictured {
-        label: "blocks3d_apic_friction_h1",
-        caption: "APIC N = 1, h = 1",
-        keys: 3,
-        last_only: false,
-        gif: true,
-        up: None,
-    },
-    Pictured {
-        label: "ramp3d_n1_t1_h1",
-        caption: "Ramp, N = 1, h = 1",
-        keys: 2,
-        last_only: true,
-        gif: false,
-        up: None,
-    },
-    Pictured {
-        label: "refinement_n8_ppc16",
-        caption: "MPM box settling on a FEM box, 8 cells across",
-        keys: 3,
-        last_only: false,
-        gif: false,
-        up: None,
-    },
-    Pictured {
-        label: "compare_bfemp_h0.125_dt0.01",
-        caption: "Sliding block, BFEMP (MPM block on a FEM ramp), h = 0.125",
-        keys: 3,
-        last_only: false,
-        gif: false,
-        up: None,
-    },
-    Pictured {
-        label: "compare_augury_APIC_N_=_10_h0.125_f0.5",
-        caption: "Sliding block, augury APIC N = 10, h = 0.125, end",
-        keys: 3,
-        last_only: true,
-        gif: false,
-        up: None,
-    },
-    Pictured {
-        label: "impact_bfemp_newmark_h0.0625_dt0.0025",
-        caption: "Two bars impacting, BFEMP Newmark (MPM bar left, FEM bar right), h = 0.0625",
-        keys: 4,
-        last_only: false,
-        gif: false,
-        up: None,
-    },
-    Pictured {
-        label: "hertz_linear_h0.05_v1_dt0.001",
-        caption: "Disk between plates, BFEMP, h = 0.05, end",
-        keys: 2,
-        last_only: true,
-        gif: false,
-        up: None,
-    },
-    Pictured {
-        label: "disk_augury_APIC_s0.02",
-        caption: "Disk between plates, augury APIC (FEM disk, kinematic plates), s = 0.02, end",
-        keys: 2,
-        last_only: true,
-        gif: false,
-        up: None,
-    },
-    Pictured {
-        label: "stability_bfemp_v16_dt0.1",
-        caption: "Stability map's hardest BFEMP run: blocks at ±16 m/s, Δt = 0.1 s",
-        keys: 3,
-        last_only: false,
-        gif: false,
-        up: None,
-    },
-    Pictured {
-        label: "twist_mu1",
-        caption: "μ = 1",
-        keys: 3,
-        last_only: false,
-        gif: true,
-        up: Some(2),
-    },
-];
+impl Pictures {
+    /// `keys` key frames (at least 2: the first and the last) shown side by side under
+    /// `caption`.
+    pub fn keys(caption: impl Into<String>, keys: usize) -> Self {
+        Self {
+            caption: caption.into(),
+            keys: keys.max(2),
+            last_only: false,
+            gif: false,
+            up: None,
+        }
+    }
 
-/// An experiment of the suite.
+    /// Show only the last key frame.
+    pub fn last_only(self) -> Self {
+        Self {
+            last_only: true,
+            ..self
+        }
+    }
+
+    /// Also make and show an animated GIF.
+    pub fn gif(self) -> Self {
+        Self { gif: true, ..self }
+    }
+
+    /// Draw 3D pictures with `axis` up.
+    pub fn up(self, axis: usize) -> Self {
+        Self {
+            up: Some(axis),
+            ..self
+        }
+    }
+}
+
 struct Experiment {
     name: &'static str,
     section: &'static str,
@@ -396,19 +274,23 @@ pub struct Ctx {
 }
 
 impl Ctx {
-    /// Picture options for `label` if the report shows its pictures (see `PICTURES`).
-    fn pictures_for(&self, label: &str) -> Option<femp::render::PictureOptions> {
-        let &Pictured {
+    /// Render options for `pictures` of the run `label`, which is remembered for
+    /// [`Ctx::collect_pictures`].
+    fn picture_options(
+        &self,
+        label: &str,
+        pictures: Option<Pictures>,
+    ) -> Option<femp::render::PictureOptions> {
+        let Pictures {
             caption,
             keys,
             last_only,
             gif,
             up,
-            ..
-        } = PICTURES.iter().find(|p| p.label == label)?;
+        } = pictures?;
         self.pictured
             .borrow_mut()
-            .push((label.to_string(), caption.to_string(), keys, last_only));
+            .push((label.to_string(), caption, keys, last_only));
         Some(femp::render::PictureOptions {
             key_frames: keys,
             gif_frames: if gif { 30 } else { 0 },
@@ -465,9 +347,10 @@ impl Ctx {
         &self,
         label: &str,
         json: &str,
+        pictures: Option<Pictures>,
         probe: impl FnMut(&femp::World<2>) -> T,
     ) -> Result<(RunResult, Vec<T>)> {
-        self.run_scene_probe::<2, T>(label, json, probe)
+        self.run_scene_probe::<2, T>(label, json, pictures, probe)
     }
 
     /// Run a `D`-dimensional scene, recording `probe(world)` after every step.
@@ -475,18 +358,20 @@ impl Ctx {
         &self,
         label: &str,
         json: &str,
+        pictures: Option<Pictures>,
         probe: impl FnMut(&femp::World<D>) -> T,
     ) -> Result<(RunResult, Vec<T>)> {
-        let (r, probes) = self.run_scene_keep::<D, T>(label, json, probe)?;
+        let (r, probes) = self.run_scene_keep::<D, T>(label, json, pictures, probe)?;
         Ok((r?, probes))
     }
 
-    /// Run a `D`-dimensional scene, recording `probe(world)` after every step (with pictures if
-    /// `PICTURES` lists the label); a run that fails mid-way still returns its probes.
+    /// Run a `D`-dimensional scene, recording `probe(world)` after every step (and `pictures`
+    /// of it); a run that fails mid-way still returns its probes.
     pub fn run_scene_keep<const D: usize, T>(
         &self,
         label: &str,
         json: &str,
+        pictures: Option<Pictures>,
         mut probe: impl FnMut(&femp::World<D>) -> T,
     ) -> Result<(Result<RunResult, femp::SimError>, Vec<T>)> {
         let scene = femp::scene::parse(json, label, self.root.join("fixtures/scenes"), label)?;
@@ -495,7 +380,7 @@ impl Ctx {
         let out = self.dir.join(label);
         let opts = RunOptions {
             no_frames: true,
-            pictures: self.pictures_for(label),
+            pictures: self.picture_options(label, pictures),
             // A validation run replaces the same run's outputs from an earlier `validate`.
             overwrite: true,
             ..Default::default()
@@ -523,14 +408,20 @@ impl Ctx {
         bar
     }
 
-    /// Run a scene (JSON text) through femp with a progress bar; `label` names the run.
-    pub fn run_scene(&self, label: &str, json: &str) -> Result<RunResult> {
+    /// Run a scene (JSON text) through femp with a progress bar (and `pictures` of it); `label`
+    /// names the run.
+    pub fn run_scene(
+        &self,
+        label: &str,
+        json: &str,
+        pictures: Option<Pictures>,
+    ) -> Result<RunResult> {
         let scene = femp::scene::parse(json, label, self.root.join("fixtures/scenes"), label)?;
         let bar = self.bar(label, &scene);
         let out = self.dir.join(label);
         let opts = RunOptions {
             no_frames: true,
-            pictures: self.pictures_for(label),
+            pictures: self.picture_options(label, pictures),
             // A validation run replaces the same run's outputs from an earlier `validate`.
             overwrite: true,
             ..Default::default()

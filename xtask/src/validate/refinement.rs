@@ -7,7 +7,7 @@
 use anyhow::Result;
 
 use super::charts::{self, Chart, Series};
-use super::{Check, Ctx, Outcome, Status, Tier, least_squares_slope};
+use super::{Check, Ctx, Outcome, Pictures, Status, Tier, least_squares_slope};
 
 fn scene(n: usize, ppc: usize, duration: f64, dt: f64) -> String {
     let dx = 1.0 / n as f64;
@@ -63,6 +63,8 @@ pub fn run(ctx: &Ctx) -> Result<Outcome> {
             let (_, probes) = ctx.run_scene_2d(
                 &format!("refinement_n{n}_ppc{ppc}"),
                 &scene(n, ppc, duration, dt),
+                (n == 8 && ppc == 16)
+                    .then(|| Pictures::keys("MPM box settling on a FEM box, 8 cells across", 3)),
                 |w| {
                     let (mut my, mut m) = (0.0, 0.0);
                     if let Some(mpm) = &w.mpm {

@@ -7,7 +7,7 @@ use anyhow::Result;
 use femp::run::RunResult;
 
 use super::charts::{self, Chart, Series};
-use super::{Check, Ctx, Outcome, Tier};
+use super::{Check, Ctx, Outcome, Pictures, Tier};
 
 const V0: f64 = 40.0;
 
@@ -165,6 +165,8 @@ pub fn run(ctx: &Ctx) -> Result<Outcome> {
         let r = ctx.run_scene(
             &format!("rings_{transfer}"),
             &scene(&res, transfer, duration, PAPER_SOLVER),
+            (transfer == "apic")
+                .then(|| Pictures::keys("MPM ring (left) against FEM ring (right), APIC", 4).gif()),
         )?;
         let f = figures(&r);
         if k == 0 {
@@ -260,6 +262,7 @@ pub fn run(ctx: &Ctx) -> Result<Outcome> {
     let r = ctx.run_scene(
         "rings_apic_fast",
         &scene(&res, "apic", duration, FAST_SOLVER),
+        None,
     )?;
     let f = figures(&r);
     let tol = res.tolerance / V0;

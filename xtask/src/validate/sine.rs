@@ -8,7 +8,7 @@
 use anyhow::Result;
 
 use super::charts::{self, Chart, Series};
-use super::{Check, Ctx, Outcome, Status, Tier};
+use super::{Check, Ctx, Outcome, Pictures, Status, Tier};
 
 const AMP: f64 = 1.0 / 40.0;
 const WAVE: f64 = 0.1;
@@ -84,12 +84,18 @@ pub fn run(ctx: &Ctx) -> Result<Outcome> {
         let label = if fem { "sine_fem" } else { "sine_level_set" };
         // Per step: (t, particles above the curve, highest particle).
         // A run that stops keeps its steps: what it measured so far is reported.
-        let (r, probes) = ctx.run_scene_keep::<2, _>(label, &scene(fem, h, ppc, dt), |w| {
-            let m = w.mpm.as_ref().expect("MPM box");
-            let inside = m.x.iter().filter(|x| x[1] >= curve(x[0], w.time)).count();
-            let top = m.x.iter().map(|x| x[1]).fold(f64::NEG_INFINITY, f64::max);
-            (w.time, inside, top)
-        })?;
+        let pictures = if fem {
+            Pictures::keys("FEM sine boundary (BFEMP)", 4)
+        } else {
+            Pictures::keys("Level-set sine boundary", 4).last_only()
+        };
+        let (r, probes) =
+            ctx.run_scene_keep::<2, _>(label, &scene(fem, h, ppc, dt), Some(pictures), |w| {
+                let m = w.mpm.as_ref().expect("MPM box");
+                let inside = m.x.iter().filter(|x| x[1] >= curve(x[0], w.time)).count();
+                let top = m.x.iter().map(|x| x[1]).fold(f64::NEG_INFINITY, f64::max);
+                (w.time, inside, top)
+            })?;
         let max_inside = probes.iter().map(|p| p.1).max().unwrap_or(0);
         // Adhesion: after the boundary has lifted off (t ≥ 1.6 s it is ≥ 0.5 m above the rest
         // height), the box top should be back near 1 m, not pulled up.

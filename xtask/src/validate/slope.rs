@@ -14,7 +14,7 @@
 use anyhow::Result;
 
 use super::charts::{self, Chart, Series};
-use super::{Check, Ctx, Outcome, Tier, least_squares_slope};
+use super::{Check, Ctx, Outcome, Pictures, Tier, least_squares_slope};
 
 const G: f64 = 5.10;
 const TAN: f64 = 0.2;
@@ -87,6 +87,7 @@ pub fn run(ctx: &Ctx) -> Result<Outcome> {
         let (r, v) = ctx.run_scene_2d(
             &format!("slope_mu_{mu}"),
             &scene(mu, settle, release),
+            (mu == 0.1).then(|| Pictures::keys("Box on the slope, μ = 0.1", 3)),
             |w| {
                 let m = w.mpm.as_ref().expect("the box is MPM");
                 let (p, mass) =

@@ -15,7 +15,7 @@ use anyhow::Result;
 use serde_json::json;
 
 use super::charts::{self, Chart, Series, Style};
-use super::{Check, Ctx, Outcome, Tier};
+use super::{Check, Ctx, Outcome, Pictures, Tier};
 
 #[derive(Clone, Copy, PartialEq, Eq, Debug)]
 enum Class {
@@ -160,7 +160,13 @@ pub fn run(ctx: &Ctx) -> Result<Outcome> {
     for &v0 in speeds {
         for &dt in dts {
             let label = format!("stability_bfemp_v{v0}_dt{dt}");
-            let r = ctx.run_scene(&label, &bfemp_scene(v0, dt));
+            let pictures = (v0 == 16.0 && dt == 0.1).then(|| {
+                Pictures::keys(
+                    "Stability map's hardest BFEMP run: blocks at ±16 m/s, Δt = 0.1 s",
+                    3,
+                )
+            });
+            let r = ctx.run_scene(&label, &bfemp_scene(v0, dt), pictures);
             bfemp.push((dt, v0, classify(r)));
         }
     }
@@ -209,7 +215,7 @@ pub fn run(ctx: &Ctx) -> Result<Outcome> {
                 let dt = f * stable;
                 v["time"]["dt"] = json!(dt);
                 let label = format!("{stem}_v{v0}_f{f}");
-                let r = ctx.run_scene(&label, &serde_json::to_string(&v)?);
+                let r = ctx.run_scene(&label, &serde_json::to_string(&v)?, None);
                 runs.push((f, v0, classify(r)));
             }
         }
@@ -249,7 +255,7 @@ pub fn run(ctx: &Ctx) -> Result<Outcome> {
             v["time"]["dt"] = json!(dt);
             v["time"]["duration"] = json!(2.0);
             let label = format!("stability_tau_r{ratio}_k{k}");
-            let class = classify(ctx.run_scene(&label, &serde_json::to_string(&v)?));
+            let class = classify(ctx.run_scene(&label, &serde_json::to_string(&v)?, None));
             runs.push((k * dt * v0 / (ratio * mesh), ratio, class));
             if k == 1.0 {
                 at_dt.push((ratio, class));

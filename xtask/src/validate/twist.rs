@@ -13,7 +13,7 @@ use anyhow::{Context, Result};
 use nalgebra::Vector3;
 
 use super::charts::{self, Chart, Series};
-use super::{Check, Ctx, Outcome, Status, Tier};
+use super::{Check, Ctx, Outcome, Pictures, Status, Tier};
 
 const OMEGA: f64 = std::f64::consts::PI / 5.0;
 
@@ -86,13 +86,18 @@ pub fn run(ctx: &Ctx) -> Result<Outcome> {
     for (k, &mu) in mus.iter().enumerate() {
         v["contact"]["friction"] = serde_json::json!(mu);
         let label = format!("twist_mu{mu}");
+        let pictures = (mu == 1.0).then(|| Pictures::keys("μ = 1", 3).gif().up(2));
         let mut top: Option<Top> = None;
-        let (r, samples) =
-            ctx.run_scene_keep::<3, (f64, f64)>(&label, &serde_json::to_string(&v)?, |w| {
+        let (r, samples) = ctx.run_scene_keep::<3, (f64, f64)>(
+            &label,
+            &serde_json::to_string(&v)?,
+            pictures,
+            |w| {
                 let x = &w.mpm.as_ref().expect("the cube is MPM").x;
                 let a = top.get_or_insert_with(|| Top::of(x, h)).angle(x);
                 (w.time, a)
-            })?;
+            },
+        )?;
         let r = match r {
             Ok(r) => r,
             Err(e) => {
