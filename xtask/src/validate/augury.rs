@@ -1,6 +1,7 @@
 //! The augury paper's experiments (§3.1–3.3) through `femp-augury`.
 
-use anyhow::Result;
+use anyhow::{Context, Result};
+use femp::scene::{AuguryModelSpec, AugurySpec, AuguryTransferSpec, SceneSpec};
 use femp_augury::scenes::{
     BlocksContact, HeadOnSetup, head_on_blocks, head_on_blocks_with, ramp, vibrating_block,
 };
@@ -9,7 +10,8 @@ use femp_augury::{ContactModel, TransferKind};
 use femp_kernels::Kernel;
 
 use super::charts::{self, Chart, Series};
-use super::{Check, Ctx, Outcome, Pictures, Tier};
+use super::scenes::cuboid_cells;
+use super::{Check, Ctx, Outcome, Pictures, Tier, fem_body};
 
 /// §3.1: two particles in one cell, APIC vs PIC (the ODE of eqs. 49–50 and the same with the
 /// real operator on a 2D quadratic B-spline grid).
@@ -300,7 +302,7 @@ fn centres_relative_velocity(w: &femp::World<3>) -> f64 {
 /// §3.2 in 3D, run past the paper's 0.05 s (about two contact periods, the relative velocity at
 /// its end a snapshot mid-rebound) to 0.15 s: without the iteration the APIC blocks are caught
 /// and come back (Fig. 2); with one they keep going (Fig. 4).
-fn blocks_3d_long(ctx: &Ctx, base: &serde_json::Value, out: &mut Outcome) -> Result<()> {
+fn blocks_3d_long(ctx: &Ctx, base: &SceneSpec, out: &mut Outcome) -> Result<()> {
     let hs: &[f64] = match ctx.tier {
         Tier::Quick => &[0.5],
         Tier::Full => &[0.5, 0.25],
@@ -310,24 +312,26 @@ fn blocks_3d_long(ctx: &Ctx, base: &serde_json::Value, out: &mut Outcome) -> Res
         // Per model: the smallest relative velocity after the rebound's first +20 m/s, and the
         // value at the end.
         let mut after = Vec::new();
-        for (model, iterations) in [("sticky", 0), ("friction", 1)] {
+        for (model, tag, iterations) in [
+            (AuguryModelSpec::Sticky, "sticky", 0),
+            (AuguryModelSpec::Friction, "friction", 1),
+        ] {
             let mut v = base.clone();
-            for b in v["bodies"].as_array_mut().expect("bodies") {
-                b["mesh"]["cuboid"]["cells"] = serde_json::json!([n, n, n]);
+            for name in ["block1", "block2"] {
+                cuboid_cells(fem_body(&mut v, name)?, [n, n, n])?;
             }
-            v["time"]["dt"] = serde_json::json!(1e-4 * h);
-            v["time"]["duration"] = serde_json::json!(0.15);
-            v["augury"] = serde_json::json!({
-                "grid_spacing": 2.0 * h, "transfer": "apic", "model": model,
-                "iterations": iterations
+            v.time.dt = 1e-4 * h;
+            v.time.duration = 0.15;
+            v.augury = Some(AugurySpec {
+                grid_spacing: Some(2.0 * h),
+                transfer: AuguryTransferSpec::Apic,
+                model,
+                iterations,
+                ..AugurySpec::default()
             });
-            let label = format!("blocks3d_long_{model}_h{h}");
-            let (_, sep) = ctx.run_scene_probe::<3, f64>(
-                &label,
-                &serde_json::to_string(&v)?,
-                None,
-                centres_relative_velocity,
-            )?;
+            let label = format!("blocks3d_long_{tag}_h{h}");
+            let (_, sep) =
+                ctx.run_scene_probe::<3, f64>(&label, &v, None, centres_relative_velocity)?;
             let rebound = sep.iter().position(|&s| s > 20.0);
             let low = rebound.map_or(f64::NAN, |k| {
                 sep[k..].iter().copied().fold(f64::INFINITY, f64::min)
@@ -359,9 +363,7 @@ pub fn blocks_impact_3d(ctx: &Ctx, out: &mut Outcome) -> Result<()> {
         Tier::Quick => &[1.0, 0.5],
         Tier::Full => &[1.0, 0.5, 0.25, 0.125],
     };
-    let base: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(
-        ctx.root.join("fixtures/scenes/augury_blocks_3d.json"),
-    )?)?;
+    let base = ctx.fixture("augury_blocks_3d")?;
     let mut energy = Vec::new();
     let mut spin = Vec::new();
     let mut losses: Vec<(String, Vec<(f64, f64)>)> = Vec::new();
@@ -379,25 +381,30 @@ pub fn blocks_impact_3d(ctx: &Ctx, out: &mut Outcome) -> Result<()> {
         for (k, &h) in hs.iter().enumerate() {
             let n = (3.0 / h).round() as usize;
             let mut v = base.clone();
-            for b in v["bodies"].as_array_mut().expect("bodies") {
-                b["mesh"]["cuboid"]["cells"] = serde_json::json!([n, n, n]);
+            for name in ["block1", "block2"] {
+                cuboid_cells(fem_body(&mut v, name)?, [n, n, n])?;
             }
-            v["time"]["dt"] = serde_json::json!(1e-4 * h);
-            v["augury"] = serde_json::json!({
-                "grid_spacing": 2.0 * h, "transfer": transfer, "model": model,
-                "iterations": iterations
+            v.time.dt = 1e-4 * h;
+            v.augury = Some(AugurySpec {
+                grid_spacing: Some(2.0 * h),
+                transfer: match transfer {
+                    "apic" => AuguryTransferSpec::Apic,
+                    _ => AuguryTransferSpec::Pic,
+                },
+                model: match model {
+                    "sticky" => AuguryModelSpec::Sticky,
+                    _ => AuguryModelSpec::Friction,
+                },
+                iterations,
+                ..AugurySpec::default()
             });
             let label = format!("blocks3d_{transfer}_{model}_h{h}");
             // Relative velocity of the centres of mass along the line joining them
             // (negative: approaching; ≈ 0: stuck together; positive: separating).
             let pictures = (transfer == "apic" && model == "friction" && h == 1.0)
                 .then(|| Pictures::keys("APIC N = 1, h = 1", 3).gif());
-            let (r, sep) = ctx.run_scene_probe::<3, f64>(
-                &label,
-                &serde_json::to_string(&v)?,
-                pictures,
-                centres_relative_velocity,
-            )?;
+            let (r, sep) =
+                ctx.run_scene_probe::<3, f64>(&label, &v, pictures, centres_relative_velocity)?;
             let m = &r.metrics;
             out.checks.push(Check::info(
                 &format!("3D {tag}, h = {h}: normal relative velocity of the centres, start → end"),
@@ -591,9 +598,7 @@ fn ramp_3d(ctx: &Ctx, out: &mut Outcome, series: &mut Vec<Series>) -> Result<()>
         Tier::Quick => &[1.0, 0.5],
         Tier::Full => &[1.0, 0.5, 0.25],
     };
-    let base: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(
-        ctx.root.join("fixtures/scenes/augury_ramp_3d.json"),
-    )?)?;
+    let base = ctx.fixture("augury_ramp_3d")?;
     let theta = 30f64.to_radians();
     let g = 100.0;
     let mu = 0.2;
@@ -616,35 +621,38 @@ fn ramp_3d(ctx: &Ctx, out: &mut Outcome, series: &mut Vec<Series>) -> Result<()>
         for (k, &h) in hs_n.iter().enumerate() {
             let cells = |len: f64| ((len / h).round() as usize).max(1);
             let mut v = base.clone();
-            v["bodies"][0]["mesh"]["cuboid"]["cells"] =
-                serde_json::json!([cells(4.0), cells(0.25), cells(1.5)]);
-            v["bodies"][1]["mesh"]["cuboid"]["cells"] =
-                serde_json::json!([cells(1.0), cells(1.0), cells(1.0)]);
-            v["time"]["dt"] = serde_json::json!(2.5e-5 * h);
-            v["time"]["duration"] = serde_json::json!(t_end);
-            v["augury"]["grid_spacing"] = serde_json::json!(0.5 * h);
-            v["augury"]["iterations"] = serde_json::json!(iterations);
-            v["augury"]["tau"] = serde_json::json!(tau_steps * 2.5e-5 * h);
+            cuboid_cells(
+                fem_body(&mut v, "ramp")?,
+                [cells(4.0), cells(0.25), cells(1.5)],
+            )?;
+            cuboid_cells(
+                fem_body(&mut v, "block")?,
+                [cells(1.0), cells(1.0), cells(1.0)],
+            )?;
+            v.time.dt = 2.5e-5 * h;
+            v.time.duration = t_end;
+            let aug = v
+                .augury
+                .as_mut()
+                .context("fixtures/scenes/augury_ramp_3d.json has no `augury` settings")?;
+            aug.grid_spacing = Some(0.5 * h);
+            aug.iterations = iterations;
+            aug.tau = Some(tau_steps * 2.5e-5 * h);
             let tau_name = tau_label(tau_steps);
             let label = format!("ramp3d_n{iterations}_t{tau_steps}_h{h}");
             let pictures = (iterations == 1 && tau_steps == 1.0 && h == 1.0)
                 .then(|| Pictures::keys("Ramp, N = 1, h = 1", 2).last_only());
-            let (_, probes) = ctx.run_scene_probe::<3, (f64, f64)>(
-                &label,
-                &serde_json::to_string(&v)?,
-                pictures,
-                |w| {
-                    let b = &w.fem[1];
-                    let m: f64 = b.mass.iter().sum();
-                    let cx =
-                        b.x.iter()
-                            .zip(&b.mass)
-                            .map(|(x, mm)| x[0] * mm)
-                            .sum::<f64>()
-                            / m;
-                    (w.time, cx)
-                },
-            )?;
+            let (_, probes) = ctx.run_scene_probe::<3, (f64, f64)>(&label, &v, pictures, |w| {
+                let b = &w.fem[1];
+                let m: f64 = b.mass.iter().sum();
+                let cx =
+                    b.x.iter()
+                        .zip(&b.mass)
+                        .map(|(x, mm)| x[0] * mm)
+                        .sum::<f64>()
+                        / m;
+                (w.time, cx)
+            })?;
             let x0 = 1.0; // centre of mass at t = 0
             let (t, x) = *probes.last().expect("steps");
             let s = x - x0;

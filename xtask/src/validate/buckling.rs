@@ -14,11 +14,12 @@
 //! displacement is the plate displacement at which the separation first reaches a quarter of the
 //! thickness (0.5 m); the order check compares the separations late in the run.
 
-use anyhow::Result;
+use anyhow::{Result, bail};
+use femp::scene::MeshSpec;
 use nalgebra::Vector2;
 
 use super::charts::{self, Chart, Series};
-use super::{Check, Ctx, Outcome, Pictures, Status, Tier};
+use super::{Check, Ctx, Outcome, Pictures, Status, Tier, contact, fem_body, mpm_body, mpm_grid};
 
 /// Separation that counts as buckled: a quarter of the inner ring's thickness (m).
 const BUCKLED: f64 = 0.5;
@@ -121,9 +122,7 @@ fn late_separation(samples: &[Sample]) -> f64 {
 
 /// Run the experiment.
 pub fn run(ctx: &Ctx) -> Result<Outcome> {
-    let mut v: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(
-        ctx.root.join("fixtures/scenes/buckling.json"),
-    )?)?;
+    let mut spec = ctx.fixture("buckling")?;
     let (h, ppc, cells, dt, duration) = match ctx.tier {
         // Quick: 4 m of plate travel (5 m until 2026-12-03; the last metre cost a third of the
         // experiment's time, and the separations keep the same order at 4 m: 0.163 / 0.140 /
@@ -131,11 +130,16 @@ pub fn run(ctx: &Ctx) -> Result<Outcome> {
         Tier::Quick => (0.5, 4, [4, 150], 1e-2, 4.0),
         Tier::Full => (0.25, 9, [8, 300], 1e-2, 6.0),
     };
-    v["mpm"]["grid_spacing"] = serde_json::json!(h);
-    v["bodies"][0]["particles_per_cell"] = serde_json::json!(ppc);
-    v["bodies"][1]["mesh"]["semicircular_ring"]["cells"] = serde_json::json!(cells);
-    v["time"]["dt"] = serde_json::json!(dt);
-    v["time"]["duration"] = serde_json::json!(duration);
+    mpm_grid(&mut spec)?.grid_spacing = h;
+    mpm_body(&mut spec, "inner")?.particles_per_cell = Some(ppc);
+    match &mut fem_body(&mut spec, "outer")?.mesh {
+        MeshSpec::SemicircularRing { cells: c, .. } => *c = cells.to_vec(),
+        other => {
+            bail!("fixtures/scenes/buckling.json: `outer` is not a semicircular ring: {other:?}")
+        }
+    }
+    spec.time.dt = dt;
+    spec.time.duration = duration;
     // At the paper's resolution with both frictions on, the paper's ε_v = 1e-5 m/s stalls
     // projected Newton within the first 0.1 s (docs/bfemp.md, known limits); 1e-3 m/s (0.1 % of
     // the plate speed) runs. The quick tier keeps the paper's value.
@@ -143,19 +147,19 @@ pub fn run(ctx: &Ctx) -> Result<Outcome> {
         Tier::Quick => 1e-5,
         Tier::Full => 1e-3,
     };
-    v["contact"]["eps_v"] = serde_json::json!(eps_v);
+    contact(&mut spec)?.eps_v = eps_v;
     // With ε_v = 1e-5 m/s and μ = 0.5 single friction-lagged solves need more than 100 projected
     // Newton iterations now and then (up to ~135 measured); whether the run got through at the
     // default limit of 100 depended on round-off (a change of summation order in the Hessian
     // assembly, or d̂ changed by 1e-6 relative, stopped it at u_y ≈ 3.1 m, 2026-12-02). 400
     // gets every variant tried through; the twist fixture uses the same limit.
-    v["solver"]["max_newton_iterations"] = serde_json::json!(400);
+    spec.solver.max_newton_iterations = 400;
     let mut out = Outcome::default();
     let mut series = Vec::new();
     let mut gap_series = Vec::new();
     let mut found = Vec::new();
     for (k, mu) in [0.0, 0.2, 0.5].into_iter().enumerate() {
-        v["contact"]["friction"] = serde_json::json!(mu);
+        contact(&mut spec)?.friction = mu;
         let label = format!("buckling_mu{mu}");
         let mut surfaces: Option<Surfaces> = None;
         let spacing = h / (ppc as f64).sqrt();
@@ -164,34 +168,29 @@ pub fn run(ctx: &Ctx) -> Result<Outcome> {
         } else {
             Pictures::keys(format!("μ = {mu}, end"), 2).last_only()
         };
-        let (r, samples) = ctx.run_scene_keep::<2, Sample>(
-            &label,
-            &serde_json::to_string(&v)?,
-            Some(pictures),
-            |w| {
-                let gap = surfaces
-                    .get_or_insert_with(|| Surfaces::of(w, spacing))
-                    .gap(w);
-                let force = w
-                    .contact_forces()
-                    .iter()
-                    .filter(|p| p.names.0 == "inner" && p.names.1 == "outer")
-                    .map(|p| -p.on_points[1])
-                    .sum();
-                let crown = w.mpm.as_ref().map_or(f64::NAN, |m| {
-                    m.x.iter()
-                        .filter(|x| x[0].abs() < 0.5)
-                        .map(|x| x[1])
-                        .fold(f64::NEG_INFINITY, f64::max)
-                });
-                Sample {
-                    u: w.time,
-                    force,
-                    crown,
-                    gap,
-                }
-            },
-        )?;
+        let (r, samples) = ctx.run_scene_keep::<2, Sample>(&label, &spec, Some(pictures), |w| {
+            let gap = surfaces
+                .get_or_insert_with(|| Surfaces::of(w, spacing))
+                .gap(w);
+            let force = w
+                .contact_forces()
+                .iter()
+                .filter(|p| p.names.0 == "inner" && p.names.1 == "outer")
+                .map(|p| -p.on_points[1])
+                .sum();
+            let crown = w.mpm.as_ref().map_or(f64::NAN, |m| {
+                m.x.iter()
+                    .filter(|x| x[0].abs() < 0.5)
+                    .map(|x| x[1])
+                    .fold(f64::NEG_INFINITY, f64::max)
+            });
+            Sample {
+                u: w.time,
+                force,
+                crown,
+                gap,
+            }
+        })?;
         let reached = samples.last().map_or(0.0, |s| s.u);
         let penetrations = match &r {
             Ok(r) => r.metrics.iter().map(|m| m.penetrations).max().unwrap_or(0),

@@ -22,9 +22,13 @@
 //! band h/2): both blocks FEM. Error: |v_A + v0| / v0 at t = 0.6 s (separation at 0.3 s).
 
 use anyhow::Result;
-use serde_json::json;
+use femp::scene::{
+    AuguryModelSpec, AugurySpec, AuguryTransferSpec, ContactSpec, FemBody, IntegratorSpec,
+    MaterialSpec, Method, MpmBody, MpmSpec, SceneSpec, TimeSpec,
+};
 
 use super::charts::{self, Chart, Series, Style};
+use super::scenes::{bodies, linear, mpm, particle_box, penalty, prescribed, rectangle};
 use super::{Check, Ctx, Outcome, Pictures, Tier};
 
 const G: f64 = 9.81;
@@ -32,58 +36,77 @@ const T_END: f64 = 1.0;
 const E: f64 = 1e7;
 const RHO: f64 = 1000.0;
 
-fn gravity() -> serde_json::Value {
+fn gravity() -> Vec<f64> {
     let th = 30f64.to_radians();
-    json!([G * th.sin(), -G * th.cos()])
+    vec![G * th.sin(), -G * th.cos()]
 }
 
-fn material() -> serde_json::Value {
-    json!({ "E": E, "nu": 0.3, "rho": RHO })
+fn material() -> MaterialSpec {
+    MaterialSpec::new(E, 0.3, RHO)
 }
 
-fn ramp(h: f64) -> serde_json::Value {
-    json!({ "kind": "fem", "name": "ramp",
-        "mesh": { "rectangle": { "min": [0.0, -0.25], "max": [5.0, 0.0],
-                                 "cells": [(5.0 / h).round() as usize, ((0.25 / h).round() as usize).max(1)] } },
-        "material": material(),
-        "prescribed": [ { "vertices": "all", "motion": [] } ] })
+fn ramp(h: f64) -> FemBody {
+    let cells = [
+        (5.0 / h).round() as usize,
+        ((0.25 / h).round() as usize).max(1),
+    ];
+    prescribed(
+        FemBody::new(
+            "ramp",
+            rectangle([0.0, -0.25], [5.0, 0.0], cells),
+            material(),
+        ),
+        vec![],
+    )
 }
 
-fn bfemp_scene(h: f64, dt: f64) -> String {
+fn bfemp_scene(h: f64, dt: f64) -> SceneSpec {
     // Particles sit at (i + ½) h/2 from the box's corner: lower the box so that the lowest row
     // starts 0.9 d̂ above the ramp (in contact, without a fall).
     let dhat = 1e-3;
     let y0 = -0.25 * h + 0.9 * dhat;
-    json!({
-        "name": "compare_bfemp", "dimension": 2, "gravity": gravity(),
-        "time": { "dt": dt, "duration": T_END },
-        "solver": { "tolerance": 1e-5, "max_newton_iterations": 200 },
-        "mpm": { "grid_spacing": h },
-        "bodies": [
-            { "kind": "mpm", "name": "block",
-              "shape": { "box": { "min": [0.5, y0], "max": [1.5, y0 + 1.0] } },
-              "particles_per_cell": 4, "material": material() },
-            ramp(h)
-        ],
-        "contact": { "dhat": dhat, "kappa": 1e7, "friction": 0.0 }
-    })
-    .to_string()
+    let mut spec = SceneSpec::new(2, TimeSpec::new(dt, T_END));
+    spec.name = Some("compare_bfemp".into());
+    spec.gravity = Some(gravity());
+    spec.solver.tolerance = 1e-5;
+    spec.solver.max_newton_iterations = 200;
+    spec.mpm = Some(MpmSpec::new(h));
+    let block = mpm(
+        "block",
+        particle_box(&[0.5, y0], &[1.5, y0 + 1.0]),
+        4,
+        material(),
+    );
+    spec.bodies = bodies([block], [ramp(h)]);
+    spec.contact = Some(ContactSpec::new(dhat, 1e7));
+    spec
 }
 
-fn explicit_scene(h: f64, dt: f64, augury: serde_json::Value) -> String {
+/// An augury scene (`method: "augury"`) of `bodies` with the settings `augury`.
+fn explicit(name: &str, time: TimeSpec, augury: AugurySpec, fem: Vec<FemBody>) -> SceneSpec {
+    let mut spec = SceneSpec::new(2, time);
+    spec.name = Some(name.into());
+    spec.method = Method::Augury;
+    spec.augury = Some(augury);
+    spec.bodies = bodies([], fem);
+    spec
+}
+
+fn explicit_scene(h: f64, dt: f64, augury: AugurySpec) -> SceneSpec {
     let n = (1.0 / h).round() as usize;
-    json!({
-        "name": "compare_explicit", "dimension": 2, "method": "augury", "gravity": gravity(),
-        "time": { "dt": dt, "duration": T_END },
-        "augury": augury,
-        "bodies": [
-            { "kind": "fem", "name": "block",
-              "mesh": { "rectangle": { "min": [0.5, 0.0], "max": [1.5, 1.0], "cells": [n, n] } },
-              "material": material() },
-            ramp(h)
-        ]
-    })
-    .to_string()
+    let block = FemBody::new(
+        "block",
+        rectangle([0.5, 0.0], [1.5, 1.0], [n, n]),
+        material(),
+    );
+    let mut spec = explicit(
+        "compare_explicit",
+        TimeSpec::new(dt, T_END),
+        augury,
+        vec![block, ramp(h)],
+    );
+    spec.gravity = Some(gravity());
+    spec
 }
 
 /// One run's outcome.
@@ -211,19 +234,18 @@ pub fn run(ctx: &Ctx) -> Result<Outcome> {
                 penetrations: r.summary.max_penetrations,
             });
         }
-        let variants: [(&'static str, serde_json::Value); 3] = [
-            (
-                "augury APIC N = 10",
-                json!({ "grid_spacing": 0.5 * h, "model": "friction", "friction": 0.0, "iterations": 10 }),
-            ),
-            (
-                "augury APIC N = 1",
-                json!({ "grid_spacing": 0.5 * h, "model": "friction", "friction": 0.0, "iterations": 1 }),
-            ),
-            (
-                "penalty baseline",
-                json!({ "contact": "penalty", "penalty": { "stiffness": 1e7, "band": 0.5 * h } }),
-            ),
+        // Frictionless augury (the friction model with μ = 0) and the penalty baseline.
+        let augury = |iterations| AugurySpec {
+            grid_spacing: Some(0.5 * h),
+            model: AuguryModelSpec::Friction,
+            friction: 0.0,
+            iterations,
+            ..AugurySpec::default()
+        };
+        let variants: [(&'static str, AugurySpec); 3] = [
+            ("augury APIC N = 10", augury(10)),
+            ("augury APIC N = 1", augury(1)),
+            ("penalty baseline", penalty(1e7, 0.5 * h)),
         ];
         for (method, aug) in variants {
             // The stability estimate of this mesh, from a probe build.
@@ -291,42 +313,55 @@ pub fn run(ctx: &Ctx) -> Result<Outcome> {
 const V0: f64 = 0.5;
 const IMPACT_END: f64 = 0.6;
 
-fn bar_material() -> serde_json::Value {
-    json!({ "model": "linear", "E": 1e5, "nu": 0.0, "rho": 1000.0 })
+fn bar_material() -> MaterialSpec {
+    linear(1e5, 0.0, 1000.0)
 }
 
-fn fem_bar(name: &str, x0: f64, h: f64, v: f64) -> serde_json::Value {
-    json!({ "kind": "fem", "name": name,
-        "mesh": { "rectangle": { "min": [x0, 0.0], "max": [x0 + 1.0, 0.5],
-                                 "cells": [(1.0 / h).round() as usize, (0.5 / h).round() as usize] } },
-        "material": bar_material(), "velocity": [v, 0.0] })
+fn fem_bar(name: &str, x0: f64, h: f64, v: f64) -> FemBody {
+    let cells = [(1.0 / h).round() as usize, (0.5 / h).round() as usize];
+    FemBody {
+        velocity: Some(vec![v, 0.0]),
+        ..FemBody::new(
+            name,
+            rectangle([x0, 0.0], [x0 + 1.0, 0.5], cells),
+            bar_material(),
+        )
+    }
 }
 
-fn impact_bfemp(h: f64, dt: f64, integrator: &str) -> String {
-    json!({
-        "name": "impact_bfemp", "dimension": 2,
-        "time": { "dt": dt, "duration": IMPACT_END, "integrator": integrator },
-        "solver": { "tolerance": 1e-5, "max_newton_iterations": 200 },
-        "mpm": { "grid_spacing": h },
-        "bodies": [
-            { "kind": "mpm", "name": "a",
-              "shape": { "box": { "min": [-1.05, 0.0], "max": [-0.05, 0.5] } },
-              "particles_per_cell": 4, "material": bar_material(), "velocity": [V0, 0.0] },
-            fem_bar("b", 0.05, h, -V0)
-        ],
-        "contact": { "dhat": 1e-3, "kappa": 1e6 }
-    })
-    .to_string()
+fn impact_bfemp(h: f64, dt: f64, integrator: IntegratorSpec) -> SceneSpec {
+    let mut spec = SceneSpec::new(
+        2,
+        TimeSpec {
+            integrator,
+            ..TimeSpec::new(dt, IMPACT_END)
+        },
+    );
+    spec.name = Some("impact_bfemp".into());
+    spec.solver.tolerance = 1e-5;
+    spec.solver.max_newton_iterations = 200;
+    spec.mpm = Some(MpmSpec::new(h));
+    let bar = MpmBody {
+        velocity: Some(vec![V0, 0.0]),
+        ..mpm(
+            "a",
+            particle_box(&[-1.05, 0.0], &[-0.05, 0.5]),
+            4,
+            bar_material(),
+        )
+    };
+    spec.bodies = bodies([bar], [fem_bar("b", 0.05, h, -V0)]);
+    spec.contact = Some(ContactSpec::new(1e-3, 1e6));
+    spec
 }
 
-fn impact_explicit(h: f64, dt: f64, augury: serde_json::Value) -> String {
-    json!({
-        "name": "impact_explicit", "dimension": 2, "method": "augury",
-        "time": { "dt": dt, "duration": IMPACT_END },
-        "augury": augury,
-        "bodies": [ fem_bar("a", -1.05, h, V0), fem_bar("b", 0.05, h, -V0) ]
-    })
-    .to_string()
+fn impact_explicit(h: f64, dt: f64, augury: AugurySpec) -> SceneSpec {
+    explicit(
+        "impact_explicit",
+        TimeSpec::new(dt, IMPACT_END),
+        augury,
+        vec![fem_bar("a", -1.05, h, V0), fem_bar("b", 0.05, h, -V0)],
+    )
 }
 
 /// One impact run: a point (error of the left bar's last velocity against −v0) or, if it stopped,
@@ -372,14 +407,20 @@ fn impact(ctx: &Ctx, out: &mut Outcome) -> Result<()> {
     let mut points: Vec<Point> = Vec::new();
     let mut failed = Vec::new();
     for &h in hs {
-        for (method, integrator) in [
-            ("BFEMP backward Euler", "backward_euler"),
-            ("BFEMP Newmark", "newmark"),
+        for (method, integrator, tag) in [
+            (
+                "BFEMP backward Euler",
+                IntegratorSpec::BackwardEuler,
+                "backward_euler",
+            ),
+            ("BFEMP Newmark", IntegratorSpec::Newmark, "newmark"),
         ] {
             for &dt in bfemp_dts {
-                let label = format!("impact_bfemp_{integrator}_h{h}_dt{dt}");
-                let pictures =
-                    (integrator == "newmark" && h == 0.0625 && dt == 0.0025).then(|| {
+                let label = format!("impact_bfemp_{tag}_h{h}_dt{dt}");
+                let pictures = (integrator == IntegratorSpec::Newmark
+                    && h == 0.0625
+                    && dt == 0.0025)
+                    .then(|| {
                         Pictures::keys(
                             "Two bars impacting, BFEMP Newmark (MPM bar left, FEM bar right), \
                          h = 0.0625",
@@ -398,19 +439,16 @@ fn impact(ctx: &Ctx, out: &mut Outcome) -> Result<()> {
                 record(&mut points, &mut failed, (method, h, dt), r, &vs);
             }
         }
-        let variants: [(&'static str, serde_json::Value); 3] = [
-            (
-                "augury APIC N = 1",
-                json!({ "grid_spacing": 2.0 * h, "model": "separation", "iterations": 1 }),
-            ),
-            (
-                "augury PIC N = 1",
-                json!({ "grid_spacing": 2.0 * h, "transfer": "pic", "model": "separation", "iterations": 1 }),
-            ),
-            (
-                "penalty baseline",
-                json!({ "contact": "penalty", "penalty": { "stiffness": 1e6, "band": 0.5 * h } }),
-            ),
+        let augury = |transfer| AugurySpec {
+            grid_spacing: Some(2.0 * h),
+            transfer,
+            model: AuguryModelSpec::Separation,
+            ..AugurySpec::default()
+        };
+        let variants: [(&'static str, AugurySpec); 3] = [
+            ("augury APIC N = 1", augury(AuguryTransferSpec::Apic)),
+            ("augury PIC N = 1", augury(AuguryTransferSpec::Pic)),
+            ("penalty baseline", penalty(1e6, 0.5 * h)),
         ];
         for (method, aug) in variants {
             let stable = ctx.stable_dt(&impact_explicit(h, 1e-4, aug.clone()))?;

@@ -19,11 +19,15 @@
 //! (`ExplicitBody::contact_force`) on the disk's lower half under the plate.
 
 use anyhow::Result;
-use serde_json::json;
+use femp::scene::{
+    AuguryModelSpec, AuguryObstaclesSpec, AugurySpec, AuguryTransferSpec, FemBody, MaterialSpec,
+    MeshSpec, Method, SceneSpec, TimeSpec,
+};
 
 use super::charts::{self, Chart, Series};
 use super::compare::{Point, fronts, max_penetrations, pareto_chart};
 use super::hertz::{self, A_LO, E, Load, NU, R};
+use super::scenes::{bodies, linear, moving, penalty, prescribed, rectangle};
 use super::{Check, Ctx, Outcome, Pictures, Tier};
 
 /// Top plate speed (m/s).
@@ -46,21 +50,25 @@ fn k_hertz() -> f64 {
     std::f64::consts::PI * E / (4.0 * (1.0 - NU * NU) * R)
 }
 
-fn material() -> serde_json::Value {
-    json!({ "model": "linear", "E": E, "nu": NU, "rho": 100.0 })
+fn material() -> MaterialSpec {
+    linear(E, NU, 100.0)
 }
 
-fn plate(name: &str, y0: f64, y1: f64, s: f64, speed: f64) -> serde_json::Value {
+fn plate(name: &str, y0: f64, y1: f64, s: f64, speed: f64) -> FemBody {
     let motion = if speed == 0.0 {
-        json!([])
+        vec![]
     } else {
-        json!([{ "until": 1000.0, "velocity": [0.0, -speed] }])
+        vec![moving(1000.0, &[0.0, -speed])]
     };
-    json!({ "kind": "fem", "name": name,
-        "mesh": { "rectangle": { "min": [-PLATE, y0], "max": [PLATE, y1],
-                                 "cells": [(2.0 * PLATE / s).round() as usize, 1] } },
-        "material": material(),
-        "prescribed": [ { "vertices": "all", "motion": motion } ] })
+    let cells = [(2.0 * PLATE / s).round() as usize, 1];
+    prescribed(
+        FemBody::new(
+            name,
+            rectangle([-PLATE, y0], [PLATE, y1], cells),
+            material(),
+        ),
+        motion,
+    )
 }
 
 /// The explicit scene with element size `s`; plates `GAP` from the disk's extreme vertices
@@ -70,22 +78,35 @@ fn explicit_scene(
     ys: Option<(f64, f64)>,
     dt: f64,
     duration: f64,
-    augury: &serde_json::Value,
-) -> String {
+    augury: &AugurySpec,
+) -> SceneSpec {
     let (lo, hi) = ys.map_or((-2.0, 2.0), |(l, h)| (l - GAP, h + GAP));
-    json!({
-        "name": "disk_explicit", "dimension": 2, "method": "augury",
-        "time": { "dt": dt, "duration": duration, "frame_interval": duration / 3.0 },
-        "augury": augury,
-        "bodies": [
-            { "kind": "fem", "name": "disk",
-              "mesh": { "file": { "path": format!("../meshes/disk_{s}.msh") } },
-              "material": material() },
+    let mut spec = SceneSpec::new(
+        2,
+        TimeSpec {
+            frame_interval: Some(duration / 3.0),
+            ..TimeSpec::new(dt, duration)
+        },
+    );
+    spec.name = Some("disk_explicit".into());
+    spec.method = Method::Augury;
+    spec.augury = Some(augury.clone());
+    let disk = FemBody::new(
+        "disk",
+        MeshSpec::File {
+            path: format!("../meshes/disk_{s}.msh"),
+        },
+        material(),
+    );
+    spec.bodies = bodies(
+        [],
+        [
+            disk,
             plate("bottom", lo - 0.1, lo, s, 0.0),
-            plate("top", hi, hi + 0.1, s, SPEED)
-        ]
-    })
-    .to_string()
+            plate("top", hi, hi + 0.1, s, SPEED),
+        ],
+    );
+    spec
 }
 
 /// `(k_fit, samples in the window)` of `(a, F)` samples, fitted over the loads at which Hertz's
@@ -120,19 +141,14 @@ fn explicit_run(
     cfg: Cfg,
     method: &'static str,
     s: f64,
-    augury: &serde_json::Value,
+    augury: &AugurySpec,
     points: &mut Vec<Point>,
     curves: &mut Vec<(String, Vec<(f64, f64)>)>,
     failed: &mut Vec<String>,
     notes: &mut Vec<String>,
 ) -> Result<()> {
     // Place the plates from the mesh's extreme vertices, and take Δt from the stability estimate.
-    let probe = femp::World::<2>::build(femp::scene::parse(
-        &explicit_scene(s, None, 1e-7, cfg.duration, augury),
-        "disk_probe",
-        ctx.root.join("fixtures/scenes"),
-        "disk_probe",
-    )?)?;
+    let probe = ctx.probe(&explicit_scene(s, None, 1e-7, cfg.duration, augury))?;
     let ys = probe.fem[0]
         .x
         .iter()
@@ -247,20 +263,18 @@ pub fn run(ctx: &Ctx) -> Result<Outcome> {
         curves.push((format!("BFEMP, h = {h}"), samples));
     }
     for &s in sizes {
-        let variants: [(&'static str, serde_json::Value); 3] = [
-            (
-                "augury APIC",
-                json!({ "grid_spacing": s, "model": "friction", "friction": 1.0, "obstacles": "kinematic" }),
-            ),
-            (
-                "augury PIC",
-                json!({ "grid_spacing": s, "transfer": "pic", "model": "friction", "friction": 1.0,
-                        "obstacles": "kinematic" }),
-            ),
-            (
-                "penalty baseline",
-                json!({ "contact": "penalty", "penalty": { "stiffness": E, "band": 0.5 * s } }),
-            ),
+        let augury = |transfer| AugurySpec {
+            grid_spacing: Some(s),
+            transfer,
+            model: AuguryModelSpec::Friction,
+            friction: 1.0,
+            obstacles: AuguryObstaclesSpec::Kinematic,
+            ..AugurySpec::default()
+        };
+        let variants: [(&'static str, AugurySpec); 3] = [
+            ("augury APIC", augury(AuguryTransferSpec::Apic)),
+            ("augury PIC", augury(AuguryTransferSpec::Pic)),
+            ("penalty baseline", penalty(E, 0.5 * s)),
         ];
         for (method, aug) in &variants {
             explicit_run(

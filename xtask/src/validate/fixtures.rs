@@ -35,9 +35,9 @@ pub fn run(ctx: &Ctx) -> Result<Outcome> {
             skipped.push(name.clone());
             continue;
         }
-        let text = std::fs::read_to_string(dir.join(format!("{name}.json")))?;
+        let spec = ctx.fixture(name)?;
         let label = format!("fixture_{name}");
-        match ctx.run_scene(&label, &text, None) {
+        match ctx.run_scene(&label, &spec, None) {
             Ok(r) => {
                 let s = &r.summary;
                 out.checks.push(Check::holds(

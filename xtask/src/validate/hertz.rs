@@ -12,10 +12,11 @@
 //! fitted `F = k a²` over the small-deformation range is compared with
 //! `k = π E / (4 (1 − ν²) R)` on two grids.
 
-use anyhow::Result;
+use anyhow::{Context, Result, bail};
+use femp::scene::{MeshSpec, ModelSpec};
 
 use super::charts::{self, Chart, Series};
-use super::{Check, Ctx, Outcome, Pictures, Tier};
+use super::{Check, Ctx, Outcome, Pictures, Tier, contact, fem_body, mpm_body, mpm_grid};
 
 pub(super) const E: f64 = 1e10;
 pub(super) const NU: f64 = 0.3;
@@ -98,24 +99,25 @@ pub(super) fn run_variant(
     pictures: Option<Pictures>,
 ) -> Result<(Vec<Sample>, f64, femp::run::RunResult)> {
     let dhat = var.dhat;
-    let mut v: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(
-        ctx.root.join("fixtures/scenes/brazilian_disk.json"),
-    )?)?;
-    v["mpm"]["grid_spacing"] = serde_json::json!(h);
-    v["time"]["duration"] = serde_json::json!(load.duration);
-    v["time"]["dt"] = serde_json::json!(load.dt);
-    v["bodies"][2]["prescribed"][0]["motion"][0]["velocity"] =
-        serde_json::json!([0.0, -load.speed]);
-    v["bodies"][0]["material"]["model"] = serde_json::json!(model);
-    v["contact"]["dhat"] = serde_json::json!(dhat);
-    v["contact"]["friction"] = serde_json::json!(var.mu);
+    let mut v = ctx.fixture("brazilian_disk")?;
+    mpm_grid(&mut v)?.grid_spacing = h;
+    v.time.duration = load.duration;
+    v.time.dt = load.dt;
+    fem_body(&mut v, "top")?
+        .prescribed
+        .first_mut()
+        .and_then(|p| p.motion.first_mut())
+        .context("fixtures/scenes/brazilian_disk.json: `top` has no motion to set")?
+        .velocity = Some(vec![0.0, -load.speed]);
+    mpm_body(&mut v, "disk")?.material.model = match model {
+        "linear" => ModelSpec::Linear,
+        "neo_hookean" => ModelSpec::NeoHookean,
+        other => bail!("no material model `{other}`"),
+    };
+    contact(&mut v)?.dhat = dhat;
+    contact(&mut v)?.friction = var.mu;
     // Plates d̂ beyond the extreme particles (the paper: "placed d̂ below / above the disk").
-    let probe = femp::World::<2>::build(femp::scene::parse(
-        &serde_json::to_string(&v)?,
-        "brazilian_disk",
-        ctx.root.join("fixtures/scenes"),
-        "brazilian_disk",
-    )?)?;
+    let probe = ctx.probe(&v)?;
     let ys = probe
         .mpm
         .as_ref()
@@ -126,10 +128,20 @@ pub(super) fn run_variant(
         (l.min(y), h.max(y))
     });
     let plate_y = y_lo - dhat;
-    v["bodies"][1]["mesh"]["rectangle"]["min"] = serde_json::json!([-1.5, plate_y - 0.1]);
-    v["bodies"][1]["mesh"]["rectangle"]["max"] = serde_json::json!([1.5, plate_y]);
-    v["bodies"][2]["mesh"]["rectangle"]["min"] = serde_json::json!([-1.5, y_hi + dhat]);
-    v["bodies"][2]["mesh"]["rectangle"]["max"] = serde_json::json!([1.5, y_hi + dhat + 0.1]);
+    for (name, y0, y1) in [
+        ("bottom", plate_y - 0.1, plate_y),
+        ("top", y_hi + dhat, y_hi + dhat + 0.1),
+    ] {
+        match &mut fem_body(&mut v, name)?.mesh {
+            MeshSpec::Rectangle { min, max, .. } => {
+                *min = vec![-1.5, y0];
+                *max = vec![1.5, y1];
+            }
+            other => {
+                bail!("fixtures/scenes/brazilian_disk.json: `{name}` is not a rectangle: {other:?}")
+            }
+        }
+    }
     let mut label = if load.speed == 0.1 {
         format!("hertz_{model}_h{h}")
     } else {
@@ -141,36 +153,31 @@ pub(super) fn run_variant(
     if var.mu != Variant::PAPER.mu {
         label += &format!("_mu{}", var.mu);
     }
-    let (r, probes) = ctx.run_scene_probe::<2, Option<Sample>>(
-        &label,
-        &serde_json::to_string(&v)?,
-        pictures,
-        |w| {
-            let mpm = w.mpm.as_ref()?;
-            let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
-            for x in &mpm.x {
-                if x[1] - plate_y < dhat {
-                    lo = lo.min(x[0]);
-                    hi = hi.max(x[0]);
-                }
+    let (r, probes) = ctx.run_scene_probe::<2, Option<Sample>>(&label, &v, pictures, |w| {
+        let mpm = w.mpm.as_ref()?;
+        let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
+        for x in &mpm.x {
+            if x[1] - plate_y < dhat {
+                lo = lo.min(x[0]);
+                hi = hi.max(x[0]);
             }
-            let pair = w
-                .contact_forces()
-                .into_iter()
-                .find(|p| p.names.1 == "bottom")?;
-            let f = pair.on_points[1];
-            let (a_moment, _) = moment_width(
-                pair.per_point
-                    .iter()
-                    .map(|(q, fq)| (mpm.x[*q as usize][0], fq[1])),
-            );
-            (hi >= lo && f > 0.0).then_some(Sample {
-                a_range: 0.5 * (hi - lo),
-                a_moment,
-                force: f,
-            })
-        },
-    )?;
+        }
+        let pair = w
+            .contact_forces()
+            .into_iter()
+            .find(|p| p.names.1 == "bottom")?;
+        let f = pair.on_points[1];
+        let (a_moment, _) = moment_width(
+            pair.per_point
+                .iter()
+                .map(|(q, fq)| (mpm.x[*q as usize][0], fq[1])),
+        );
+        (hi >= lo && f > 0.0).then_some(Sample {
+            a_range: 0.5 * (hi - lo),
+            a_moment,
+            force: f,
+        })
+    })?;
     anyhow::ensure!(
         r.summary.max_penetrations == 0,
         "{label}: {} penetrations",

@@ -20,6 +20,7 @@ mod hertz;
 mod refinement;
 mod report;
 mod rings;
+mod scenes;
 mod sine;
 mod slope;
 mod stability;
@@ -31,6 +32,7 @@ use std::time::Instant;
 use anyhow::{Context, Result, bail};
 use femp::metrics::Metrics;
 use femp::run::{RunOptions, RunResult, run_with};
+use femp::scene::{BodySpec, ContactSpec, FemBody, MpmBody, MpmSpec, SceneSpec};
 
 /// Resolution tier.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
@@ -328,14 +330,32 @@ impl Ctx {
         Ok(())
     }
 
-    /// The explicit stability estimate of the 2D augury scene `json`, from a probe build.
-    pub fn stable_dt(&self, json: &str) -> Result<f64> {
-        let world = femp::World::<2>::build(femp::scene::parse(
-            json,
-            "probe",
+    /// The committed scene `fixtures/scenes/{name}.json` as a typed value to edit and run
+    /// (through [`SceneSpec::to_json`]).
+    pub fn fixture(&self, name: &str) -> Result<SceneSpec> {
+        let path = self.root.join(format!("fixtures/scenes/{name}.json"));
+        Ok(femp::scene::load(&path)?.spec)
+    }
+
+    /// `spec` parsed back from its text and validated, as `femp run` would read it (relative
+    /// paths against `fixtures/scenes/`); the text is what the run copies into its directory.
+    pub fn scene(&self, label: &str, spec: &SceneSpec) -> Result<femp::scene::Scene> {
+        Ok(femp::scene::parse(
+            &spec.to_json(),
+            label,
             self.root.join("fixtures/scenes"),
-            "probe",
-        )?)?;
+            label,
+        )?)
+    }
+
+    /// The 2D world of `spec`, built but not run (to probe it).
+    pub fn probe(&self, spec: &SceneSpec) -> Result<femp::World<2>> {
+        Ok(femp::World::<2>::build(self.scene("probe", spec)?)?)
+    }
+
+    /// The explicit stability estimate of the 2D augury scene `spec`, from a probe build.
+    pub fn stable_dt(&self, spec: &SceneSpec) -> Result<f64> {
+        let world = self.probe(spec)?;
         world
             .augury()
             .map(|a| a.stable_dt)
@@ -346,22 +366,22 @@ impl Ctx {
     pub fn run_scene_2d<T>(
         &self,
         label: &str,
-        json: &str,
+        spec: &SceneSpec,
         pictures: Option<Pictures>,
         probe: impl FnMut(&femp::World<2>) -> T,
     ) -> Result<(RunResult, Vec<T>)> {
-        self.run_scene_probe::<2, T>(label, json, pictures, probe)
+        self.run_scene_probe::<2, T>(label, spec, pictures, probe)
     }
 
     /// Run a `D`-dimensional scene, recording `probe(world)` after every step.
     pub fn run_scene_probe<const D: usize, T>(
         &self,
         label: &str,
-        json: &str,
+        spec: &SceneSpec,
         pictures: Option<Pictures>,
         probe: impl FnMut(&femp::World<D>) -> T,
     ) -> Result<(RunResult, Vec<T>)> {
-        let (r, probes) = self.run_scene_keep::<D, T>(label, json, pictures, probe)?;
+        let (r, probes) = self.run_scene_keep::<D, T>(label, spec, pictures, probe)?;
         Ok((r?, probes))
     }
 
@@ -370,11 +390,11 @@ impl Ctx {
     pub fn run_scene_keep<const D: usize, T>(
         &self,
         label: &str,
-        json: &str,
+        spec: &SceneSpec,
         pictures: Option<Pictures>,
         mut probe: impl FnMut(&femp::World<D>) -> T,
     ) -> Result<(Result<RunResult, femp::SimError>, Vec<T>)> {
-        let scene = femp::scene::parse(json, label, self.root.join("fixtures/scenes"), label)?;
+        let scene = self.scene(label, spec)?;
         anyhow::ensure!(scene.spec.dimension == D, "{label}: not a {D}D scene");
         let bar = self.bar(label, &scene);
         let out = self.dir.join(label);
@@ -408,15 +428,15 @@ impl Ctx {
         bar
     }
 
-    /// Run a scene (JSON text) through femp with a progress bar (and `pictures` of it); `label`
-    /// names the run.
+    /// Run a scene through femp with a progress bar (and `pictures` of it); `label` names the
+    /// run.
     pub fn run_scene(
         &self,
         label: &str,
-        json: &str,
+        spec: &SceneSpec,
         pictures: Option<Pictures>,
     ) -> Result<RunResult> {
-        let scene = femp::scene::parse(json, label, self.root.join("fixtures/scenes"), label)?;
+        let scene = self.scene(label, spec)?;
         let bar = self.bar(label, &scene);
         let out = self.dir.join(label);
         let opts = RunOptions {
@@ -434,6 +454,40 @@ impl Ctx {
         self.progress.remove(&bar);
         Ok(r?)
     }
+}
+
+/// The MPM body named `name` in `spec`.
+pub fn mpm_body<'s>(spec: &'s mut SceneSpec, name: &str) -> Result<&'s mut MpmBody> {
+    spec.bodies
+        .iter_mut()
+        .find_map(|b| match b {
+            BodySpec::Mpm(b) if b.name == name => Some(b),
+            _ => None,
+        })
+        .with_context(|| format!("the scene has no MPM body `{name}`"))
+}
+
+/// The FEM body named `name` in `spec`.
+pub fn fem_body<'s>(spec: &'s mut SceneSpec, name: &str) -> Result<&'s mut FemBody> {
+    spec.bodies
+        .iter_mut()
+        .find_map(|b| match b {
+            BodySpec::Fem(b) if b.name == name => Some(b),
+            _ => None,
+        })
+        .with_context(|| format!("the scene has no FEM body `{name}`"))
+}
+
+/// The contact settings of `spec`.
+pub fn contact(spec: &mut SceneSpec) -> Result<&mut ContactSpec> {
+    spec.contact
+        .as_mut()
+        .context("the scene has no `contact` settings")
+}
+
+/// The MPM grid settings of `spec`.
+pub fn mpm_grid(spec: &mut SceneSpec) -> Result<&mut MpmSpec> {
+    spec.mpm.as_mut().context("the scene has no `mpm` settings")
 }
 
 const EXPERIMENTS: &[Experiment] = &[

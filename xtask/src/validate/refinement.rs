@@ -5,38 +5,49 @@
 //! from the finest resolution's; the paper measures order 2.75 with 16 particles per cell.
 
 use anyhow::Result;
+use femp::scene::{
+    ContactSpec, FemBody, MaterialSpec, MpmSpec, PrescribedSpec, SceneSpec, TimeSpec, TransferSpec,
+    VertexSelector,
+};
 
 use super::charts::{self, Chart, Series};
+use super::scenes::{bodies, mpm, particle_box, rectangle};
 use super::{Check, Ctx, Outcome, Pictures, Status, Tier, least_squares_slope};
 
-fn scene(n: usize, ppc: usize, duration: f64, dt: f64) -> String {
+fn scene(n: usize, ppc: usize, duration: f64, dt: f64) -> SceneSpec {
     let dx = 1.0 / n as f64;
     let dhat = dx * dx;
+    let mut spec = SceneSpec::new(2, TimeSpec::new(dt, duration));
+    spec.name = Some(format!("refinement_n{n}_ppc{ppc}"));
+    spec.gravity = Some(vec![0.0, -10.0]);
+    spec.solver.tolerance = 1e-9;
+    spec.solver.max_newton_iterations = 500;
+    spec.mpm = Some(MpmSpec {
+        transfer: TransferSpec::Pic,
+        ..MpmSpec::new(dx)
+    });
     // The MPM box starts Δx above the FEM box.
-    format!(
-        r#"{{
-  "name": "refinement_n{n}_ppc{ppc}",
-  "dimension": 2, "gravity": [0, -10],
-  "time": {{ "dt": {dt}, "duration": {duration}, "integrator": "backward_euler" }},
-  "solver": {{ "tolerance": 1e-9, "max_newton_iterations": 500 }},
-  "mpm": {{ "grid_spacing": {dx}, "transfer": "pic" }},
-  "bodies": [
-    {{ "kind": "mpm", "name": "mpm_box",
-      "shape": {{ "box": {{ "min": [-1.0, {y0}], "max": [1.0, {y1}] }} }},
-      "particles_per_cell": {ppc},
-      "material": {{ "E": 4e4, "nu": 0.4, "rho": 1000 }} }},
-    {{ "kind": "fem", "name": "fem_box",
-      "mesh": {{ "rectangle": {{ "min": [-2.0, -1.0], "max": [2.0, 0.0], "cells": [{cx}, {n}] }} }},
-      "material": {{ "E": 4e4, "nu": 0.4, "rho": 100 }},
-      "prescribed": [ {{ "vertices": {{ "below": {{ "axis": 1, "value": {fix} }} }}, "motion": [] }} ] }}
-  ],
-  "contact": {{ "dhat": {dhat}, "kappa": 1e6 }}
-}}"#,
-        y0 = dx,
-        y1 = 1.0 + dx,
-        cx = 4 * n,
-        fix = -1.0 + 0.5 * dx,
-    )
+    let block = mpm(
+        "mpm_box",
+        particle_box(&[-1.0, dx], &[1.0, 1.0 + dx]),
+        ppc,
+        MaterialSpec::new(4e4, 0.4, 1000.0),
+    );
+    let mut base = FemBody::new(
+        "fem_box",
+        rectangle([-2.0, -1.0], [2.0, 0.0], [4 * n, n]),
+        MaterialSpec::new(4e4, 0.4, 100.0),
+    );
+    base.prescribed = vec![PrescribedSpec {
+        vertices: VertexSelector::Below {
+            axis: 1,
+            value: -1.0 + 0.5 * dx,
+        },
+        motion: Vec::new(),
+    }];
+    spec.bodies = bodies([block], [base]);
+    spec.contact = Some(ContactSpec::new(dhat, 1e6));
+    spec
 }
 
 /// Least-squares slope of log(err) against log(Δx).

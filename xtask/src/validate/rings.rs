@@ -5,6 +5,10 @@
 
 use anyhow::Result;
 use femp::run::RunResult;
+use femp::scene::{
+    BodySpec, ContactSpec, FemBody, IntegratorSpec, LinearSpec, MaterialSpec, MeshSpec, ModelSpec,
+    MpmBody, MpmSpec, ProjectionSpec, Sampling, SceneSpec, ShapeSpec, TimeSpec, TransferSpec,
+};
 
 use super::charts::{self, Chart, Series};
 use super::{Check, Ctx, Outcome, Pictures, Tier};
@@ -19,44 +23,70 @@ struct Resolution {
     tolerance: f64,
 }
 
-/// The paper's solver settings: projected Newton, Cholesky directions.
-const PAPER_SOLVER: &str = "";
+/// The solver settings of a run.
+#[derive(Clone, Copy)]
+enum Solver {
+    /// The paper's: projected Newton, Cholesky directions.
+    Paper,
+    /// The fastest settings that reach the same minimisers to the Newton tolerance
+    /// (docs/performance.md): the exact Hessian whenever it is positive definite, directions by
+    /// Jacobi-preconditioned CG with Eisenstat–Walker forcing, the last Hessian reused once a
+    /// full step's increment is below 1e-2 m/s (10⁴ ε_d).
+    Fast,
+}
 
-/// The fastest settings that reach the same minimisers to the Newton tolerance
-/// (docs/performance.md): the exact Hessian whenever it is positive definite, directions by
-/// Jacobi-preconditioned CG with Eisenstat–Walker forcing, the last Hessian reused once a full
-/// step's increment is below 1e-2 m/s (10⁴ ε_d).
-const FAST_SOLVER: &str = r#", "projection": "when_indefinite", "linear": "pcg", "pcg_rtol_max": 1e-2, "reuse_hessian_below": 1e-2"#;
-
-fn scene(r: &Resolution, transfer: &str, duration: f64, solver: &str) -> String {
-    format!(
-        r#"{{
-  "name": "colliding_rings_{transfer}",
-  "dimension": 2,
-  "gravity": [0.0, 0.0],
-  "time": {{ "dt": {dt}, "duration": {duration}, "integrator": "newmark" }},
-  "solver": {{ "tolerance": {tol}{solver} }},
-  "mpm": {{ "grid_spacing": {h}, "transfer": "{transfer}" }},
-  "bodies": [
-    {{ "kind": "mpm", "name": "mpm_ring",
-      "shape": {{ "ring": {{ "center": [-5.0, 0.0], "r_in": 3.0, "r_out": 4.0 }} }},
-      "particles_per_cell": {ppc},
-      "material": {{ "model": "neo_hookean", "E": 1e8, "nu": 0.2, "rho": 1000.0 }},
-      "velocity": [{V0}, 0.0] }},
-    {{ "kind": "fem", "name": "fem_ring",
-      "mesh": {{ "ring": {{ "center": [5.0, 0.0], "r_in": 3.0, "r_out": 4.0, "cells": [{c0}, {c1}] }} }},
-      "material": {{ "model": "neo_hookean", "E": 1e8, "nu": 0.2, "rho": 1000.0 }},
-      "velocity": [-{V0}, 0.0] }}
-  ],
-  "contact": {{ "dhat": 0.01, "kappa": 1e7 }}
-}}"#,
-        dt = r.dt,
-        tol = r.tolerance,
-        h = r.h,
-        ppc = r.ppc,
-        c0 = r.cells[0],
-        c1 = r.cells[1],
-    )
+fn scene(r: &Resolution, transfer: TransferSpec, duration: f64, solver: Solver) -> SceneSpec {
+    let name = match transfer {
+        TransferSpec::Apic => "apic",
+        TransferSpec::Flip => "flip",
+        TransferSpec::Pic => "pic",
+    };
+    let mut time = TimeSpec::new(r.dt, duration);
+    time.integrator = IntegratorSpec::Newmark;
+    let mut spec = SceneSpec::new(2, time);
+    spec.name = Some(format!("colliding_rings_{name}"));
+    spec.gravity = Some(vec![0.0, 0.0]);
+    spec.solver.tolerance = r.tolerance;
+    if let Solver::Fast = solver {
+        spec.solver.projection = ProjectionSpec::WhenIndefinite;
+        spec.solver.linear = LinearSpec::Pcg;
+        spec.solver.pcg_rtol_max = Some(1e-2);
+        spec.solver.reuse_hessian_below = 1e-2;
+    }
+    spec.mpm = Some(MpmSpec {
+        transfer,
+        ..MpmSpec::new(r.h)
+    });
+    let material = || MaterialSpec {
+        model: ModelSpec::NeoHookean,
+        ..MaterialSpec::new(1e8, 0.2, 1000.0)
+    };
+    let mut mpm = MpmBody::new(
+        "mpm_ring",
+        ShapeSpec::Ring {
+            center: vec![-5.0, 0.0],
+            r_in: 3.0,
+            r_out: 4.0,
+            sampling: Sampling::default(),
+        },
+        material(),
+    );
+    mpm.particles_per_cell = Some(r.ppc);
+    mpm.velocity = Some(vec![V0, 0.0]);
+    let mut fem = FemBody::new(
+        "fem_ring",
+        MeshSpec::Ring {
+            center: vec![5.0, 0.0],
+            r_in: 3.0,
+            r_out: 4.0,
+            cells: r.cells.to_vec(),
+        },
+        material(),
+    );
+    fem.velocity = Some(vec![-V0, 0.0]);
+    spec.bodies = vec![BodySpec::Mpm(mpm), BodySpec::Fem(fem)];
+    spec.contact = Some(ContactSpec::new(0.01, 1e7));
+    spec
 }
 
 fn total_energy(m: &femp::metrics::Metrics) -> f64 {
@@ -161,18 +191,24 @@ pub fn run(ctx: &Ctx) -> Result<Outcome> {
     let mut energy_series = Vec::new();
     let mut momentum_series = Vec::new();
     let mut apic = None;
-    for (k, (transfer, paper_loss)) in [("apic", 8.57), ("flip", 9.67)].into_iter().enumerate() {
+    for (k, (transfer, tag, paper_loss)) in [
+        (TransferSpec::Apic, "apic", 8.57),
+        (TransferSpec::Flip, "flip", 9.67),
+    ]
+    .into_iter()
+    .enumerate()
+    {
         let r = ctx.run_scene(
-            &format!("rings_{transfer}"),
-            &scene(&res, transfer, duration, PAPER_SOLVER),
-            (transfer == "apic")
+            &format!("rings_{tag}"),
+            &scene(&res, transfer, duration, Solver::Paper),
+            (transfer == TransferSpec::Apic)
                 .then(|| Pictures::keys("MPM ring (left) against FEM ring (right), APIC", 4).gif()),
         )?;
         let f = figures(&r);
         if k == 0 {
             apic = Some((figures(&r), r.summary.wall_s, r.summary.newton_iterations));
         }
-        let up = transfer.to_uppercase();
+        let up = tag.to_uppercase();
         // Newton stops when velocities are converged to ε_d: the momentum residual is at most
         // M ε_d, i.e. ε_d / V0 relative to Σ m|v|.
         let tol = res.tolerance / V0;
@@ -261,7 +297,7 @@ pub fn run(ctx: &Ctx) -> Result<Outcome> {
     let (fa, paper_wall, paper_newton) = apic.expect("the APIC run ran");
     let r = ctx.run_scene(
         "rings_apic_fast",
-        &scene(&res, "apic", duration, FAST_SOLVER),
+        &scene(&res, TransferSpec::Apic, duration, Solver::Fast),
         None,
     )?;
     let f = figures(&r);

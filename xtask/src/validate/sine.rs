@@ -6,61 +6,75 @@
 //! penetrate. Paper: d̂ = 1e-3, κ = 1e4, backward Euler, Δt = 1e-3, ε_d = 1e-4, h = 0.02.
 
 use anyhow::Result;
+use femp::scene::{
+    BoundaryCondition, BoundaryShape, BoundarySpec, ContactSpec, FemBody, MaterialSpec, MeshSpec,
+    MotionSegment, MpmSpec, SceneSpec, TimeSpec,
+};
 
 use super::charts::{self, Chart, Series};
+use super::scenes::{bodies, half_plane, moving, mpm, particle_box, prescribed};
 use super::{Check, Ctx, Outcome, Pictures, Status, Tier};
 
 const AMP: f64 = 1.0 / 40.0;
 const WAVE: f64 = 0.1;
 const OFFSET: f64 = 1.2;
 
-fn motion() -> &'static str {
-    r#"[ { "until": 0.6, "velocity": [0, -1] }, { "until": 1.1, "velocity": [-1, 0] }, { "until": 1.8, "velocity": [0, 1] } ]"#
+/// The boundary's motion: down, left, up.
+fn motion() -> Vec<MotionSegment> {
+    vec![
+        moving(0.6, &[0.0, -1.0]),
+        moving(1.1, &[-1.0, 0.0]),
+        moving(1.8, &[0.0, 1.0]),
+    ]
 }
 
-fn scene(fem: bool, h: f64, ppc: usize, dt: f64) -> String {
-    let boundary = if fem {
-        format!(
-            r#""bodies": [
-    {{ "kind": "mpm", "name": "box", "shape": {{ "box": {{ "min": [0, 0], "max": [1, 1] }} }},
-      "particles_per_cell": {ppc}, "material": {{ "E": 1e6, "nu": 0.2, "rho": 1000 }} }},
-    {{ "kind": "fem", "name": "sine",
-      "mesh": {{ "cosine_strip": {{ "amplitude": {AMP}, "wavelength": {WAVE}, "offset": {OFFSET},
-        "x0": -0.6, "x1": 1.6, "thickness": 0.1, "cells": [440, 2] }} }},
-      "material": {{ "E": 1e8, "nu": 0.3, "rho": 1000 }},
-      "prescribed": [ {{ "vertices": "all", "motion": {m} }} ] }}
-  ],
-  "contact": {{ "dhat": 1e-3, "kappa": 1e4 }},
-  "boundaries": [
-    {{ "shape": {{ "half_plane": {{ "point": [0, 0], "normal": [0, 1] }} }}, "condition": "no_slip" }}
-  ]"#,
-            m = motion()
-        )
+fn scene(fem: bool, h: f64, ppc: usize, dt: f64) -> SceneSpec {
+    let mut spec = SceneSpec::new(2, TimeSpec::new(dt, 1.8));
+    spec.name = Some(format!("sine_{}", if fem { "fem" } else { "level_set" }));
+    spec.gravity = Some(vec![0.0, -9.81]);
+    spec.solver.max_newton_iterations = 300;
+    spec.mpm = Some(MpmSpec::new(h));
+    let block = mpm(
+        "box",
+        particle_box(&[0.0, 0.0], &[1.0, 1.0]),
+        ppc,
+        MaterialSpec::new(1e6, 0.2, 1000.0),
+    );
+    let floor = half_plane(&[0.0, 0.0], &[0.0, 1.0], BoundaryCondition::NoSlip);
+    if fem {
+        let strip = FemBody::new(
+            "sine",
+            MeshSpec::CosineStrip {
+                amplitude: AMP,
+                wavelength: WAVE,
+                offset: OFFSET,
+                x0: -0.6,
+                x1: 1.6,
+                thickness: 0.1,
+                cells: vec![440, 2],
+            },
+            MaterialSpec::new(1e8, 0.3, 1000.0),
+        );
+        spec.bodies = bodies([block], [prescribed(strip, motion())]);
+        spec.contact = Some(ContactSpec::new(1e-3, 1e4));
+        spec.boundaries = vec![floor];
     } else {
-        format!(
-            r#""bodies": [
-    {{ "kind": "mpm", "name": "box", "shape": {{ "box": {{ "min": [0, 0], "max": [1, 1] }} }},
-      "particles_per_cell": {ppc}, "material": {{ "E": 1e6, "nu": 0.2, "rho": 1000 }} }}
-  ],
-  "boundaries": [
-    {{ "shape": {{ "half_plane": {{ "point": [0, 0], "normal": [0, 1] }} }}, "condition": "no_slip" }},
-    {{ "shape": {{ "cosine": {{ "amplitude": {AMP}, "wavelength": {WAVE}, "offset": {OFFSET}, "solid_above": true }} }},
-      "condition": "slip", "motion": {m} }}
-  ]"#,
-            m = motion()
-        )
-    };
-    format!(
-        r#"{{
-  "name": "sine_{kind}",
-  "dimension": 2, "gravity": [0, -9.81],
-  "time": {{ "dt": {dt}, "duration": 1.8, "integrator": "backward_euler" }},
-  "solver": {{ "tolerance": 1e-4, "max_newton_iterations": 300 }},
-  "mpm": {{ "grid_spacing": {h}, "transfer": "apic" }},
-  {boundary}
-}}"#,
-        kind = if fem { "fem" } else { "level_set" }
-    )
+        spec.bodies = bodies([block], []);
+        spec.boundaries = vec![
+            floor,
+            BoundarySpec {
+                shape: BoundaryShape::Cosine {
+                    amplitude: AMP,
+                    wavelength: WAVE,
+                    offset: OFFSET,
+                    solid_above: true,
+                },
+                condition: BoundaryCondition::Slip,
+                motion: motion(),
+            },
+        ];
+    }
+    spec
 }
 
 /// Height of the boundary's curve at `x` and time `t` (the motion script above).

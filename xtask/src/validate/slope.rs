@@ -12,15 +12,20 @@
 //! releases for 1 s (full tier); the quick tier settles 0.25 s and releases 0.5 s.
 
 use anyhow::Result;
+use femp::scene::{
+    ContactSpec, FemBody, MaterialSpec, MotionSegment, MpmSpec, PairSpec, SceneSpec, ShapeSpec,
+    TimeSpec, TransformSpec,
+};
 
 use super::charts::{self, Chart, Series};
+use super::scenes::{bodies, moving, mpm, prescribed, rectangle};
 use super::{Check, Ctx, Outcome, Pictures, Tier, least_squares_slope};
 
 const G: f64 = 5.10;
 const TAN: f64 = 0.2;
 const EPS_V: f64 = 1e-5;
 
-fn scene(mu: f64, settle: f64, release: f64) -> String {
+fn scene(mu: f64, settle: f64, release: f64) -> SceneSpec {
     let theta = -TAN.atan().to_degrees();
     let (sin, cos) = TAN.atan().sin_cos();
     // Gravity stays vertical; slope, box and wall are rotated by −θ (downhill is +x). On release
@@ -38,37 +43,64 @@ fn scene(mu: f64, settle: f64, release: f64) -> String {
     let shift = 0.00125 - 0.0009;
     let (tx, ty) = (-shift * sin, -shift * cos);
     let wall_x = 0.04875 + 0.0009;
-    format!(
-        r#"{{
-  "name": "slope_mu_{mu}",
-  "dimension": 2, "gravity": [0, -{G}],
-  "time": {{ "dt": 1e-3, "duration": {duration}, "integrator": "backward_euler" }},
-  "solver": {{ "tolerance": 1e-8, "max_newton_iterations": 200, "max_friction_iterations": 50 }},
-  "mpm": {{ "grid_spacing": 0.005 }},
-  "bodies": [
-    {{ "kind": "mpm", "name": "box",
-      "shape": {{ "box": {{ "min": [-0.05, 0.0], "max": [0.05, 0.02],
-        "transform": {{ "rotate_deg": {theta}, "translate": [{tx}, {ty}] }} }} }},
-      "particles_per_cell": 4,
-      "material": {{ "E": 4e12, "nu": 0.2, "rho": 100 }} }},
-    {{ "kind": "fem", "name": "slope",
-      "mesh": {{ "rectangle": {{ "min": [-1, -0.05], "max": [1, 0], "cells": [40, 1] }} }},
-      "transform": {{ "rotate_deg": {theta} }},
-      "material": {{ "E": 4e12, "nu": 0.2, "rho": 1000 }},
-      "prescribed": [ {{ "vertices": "all", "motion": [] }} ] }},
-    {{ "kind": "fem", "name": "wall",
-      "mesh": {{ "rectangle": {{ "min": [{wall_x}, 0.0], "max": [0.06, 0.04], "cells": [1, 4] }} }},
-      "transform": {{ "rotate_deg": {theta} }},
-      "material": {{ "E": 4e12, "nu": 0.2, "rho": 1000 }},
-      "prescribed": [ {{ "vertices": "all", "motion": [
-        {{ "until": {settle} }},
-        {{ "until": {away}, "velocity": [{dx}, {dy}] }},
-        {{ "until": {gone}, "velocity": [{wx}, {wy}] }} ] }} ] }}
-  ],
-  "contact": {{ "dhat": 0.001, "kappa": 1e6, "friction": {mu}, "eps_v": {EPS_V},
-    "pairs": [ {{ "bodies": ["box", "wall"], "friction": 0 }} ] }}
-}}"#
-    )
+    let mut spec = SceneSpec::new(2, TimeSpec::new(1e-3, duration));
+    spec.name = Some(format!("slope_mu_{mu}"));
+    spec.gravity = Some(vec![0.0, -G]);
+    spec.solver.tolerance = 1e-8;
+    spec.solver.max_newton_iterations = 200;
+    spec.solver.max_friction_iterations = 50;
+    spec.mpm = Some(MpmSpec::new(0.005));
+    let material = |rho| MaterialSpec::new(4e12, 0.2, rho);
+    let turned = |translate: Option<Vec<f64>>| TransformSpec {
+        rotate_deg: theta,
+        translate,
+        ..TransformSpec::default()
+    };
+    let block = mpm(
+        "box",
+        ShapeSpec::Box {
+            min: vec![-0.05, 0.0],
+            max: vec![0.05, 0.02],
+            transform: Some(turned(Some(vec![tx, ty]))),
+        },
+        4,
+        material(100.0),
+    );
+    let slope = FemBody {
+        transform: Some(turned(None)),
+        ..FemBody::new(
+            "slope",
+            rectangle([-1.0, -0.05], [1.0, 0.0], [40, 1]),
+            material(1000.0),
+        )
+    };
+    let wall = FemBody {
+        transform: Some(turned(None)),
+        ..FemBody::new(
+            "wall",
+            rectangle([wall_x, 0.0], [0.06, 0.04], [1, 4]),
+            material(1000.0),
+        )
+    };
+    let wall = prescribed(
+        wall,
+        vec![
+            MotionSegment::until(settle),
+            moving(away, &[dx, dy]),
+            moving(gone, &[wx, wy]),
+        ],
+    );
+    spec.bodies = bodies([block], [prescribed(slope, vec![]), wall]);
+    spec.contact = Some(ContactSpec {
+        friction: mu,
+        eps_v: EPS_V,
+        pairs: vec![PairSpec {
+            friction: Some(0.0),
+            ..PairSpec::new("box", "wall")
+        }],
+        ..ContactSpec::new(0.001, 1e6)
+    });
+    spec
 }
 
 /// Run the experiment.

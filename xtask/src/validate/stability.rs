@@ -12,10 +12,14 @@
 //! added energy), or **stable**.
 
 use anyhow::Result;
-use serde_json::json;
+use femp::scene::{
+    AuguryModelSpec, AugurySpec, ContactSpec, FemBody, MaterialSpec, MpmBody, MpmSpec, SceneSpec,
+    TimeSpec,
+};
 
 use super::charts::{self, Chart, Series, Style};
-use super::{Check, Ctx, Outcome, Pictures, Tier};
+use super::scenes::{bodies, particle_box, penalty, prescribed, rectangle};
+use super::{Check, Ctx, Outcome, Pictures, Tier, fem_body};
 
 #[derive(Clone, Copy, PartialEq, Eq, Debug)]
 enum Class {
@@ -69,24 +73,27 @@ fn classify(r: Result<femp::run::RunResult>) -> Class {
 
 const SPEED: &str = "impact speed v0 (m/s)";
 
-fn bfemp_scene(v0: f64, dt: f64) -> String {
-    json!({
-        "dimension": 2,
-        "time": { "dt": dt, "duration": 0.3 },
-        "solver": { "tolerance": 1e-5, "max_newton_iterations": 200 },
-        "mpm": { "grid_spacing": 0.05 },
-        "bodies": [
-            { "kind": "mpm", "name": "block",
-              "shape": { "box": { "min": [-0.2, 0.05], "max": [0.2, 0.25] } },
-              "material": { "E": 1e5, "nu": 0.3, "rho": 1000 }, "velocity": [0, -v0] },
-            { "kind": "fem", "name": "plate",
-              "mesh": { "rectangle": { "min": [-1, -0.1], "max": [1, 0], "cells": [20, 1] } },
-              "material": { "E": 1e7, "nu": 0.3, "rho": 1000 },
-              "prescribed": [ { "vertices": "all", "motion": [] } ] }
-        ],
-        "contact": { "dhat": 0.005, "kappa": 1e5 }
-    })
-    .to_string()
+fn bfemp_scene(v0: f64, dt: f64) -> SceneSpec {
+    let mut spec = SceneSpec::new(2, TimeSpec::new(dt, 0.3));
+    spec.solver.tolerance = 1e-5;
+    spec.solver.max_newton_iterations = 200;
+    spec.mpm = Some(MpmSpec::new(0.05));
+    let block = MpmBody {
+        velocity: Some(vec![0.0, -v0]),
+        ..MpmBody::new(
+            "block",
+            particle_box(&[-0.2, 0.05], &[0.2, 0.25]),
+            MaterialSpec::new(1e5, 0.3, 1000.0),
+        )
+    };
+    let plate = FemBody::new(
+        "plate",
+        rectangle([-1.0, -0.1], [1.0, 0.0], [20, 1]),
+        MaterialSpec::new(1e7, 0.3, 1000.0),
+    );
+    spec.bodies = bodies([block], [prescribed(plate, vec![])]);
+    spec.contact = Some(ContactSpec::new(0.005, 1e5));
+    spec
 }
 
 fn map_chart(
@@ -187,35 +194,36 @@ pub fn run(ctx: &Ctx) -> Result<Outcome> {
     )?;
     out.charts.push(("BFEMP stability map".into(), png));
     // Augury and penalty.
-    let base: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(
-        ctx.root.join("fixtures/scenes/augury_blocks.json"),
-    )?)?;
+    let base = ctx.fixture("augury_blocks")?;
     for (stem, name, aug) in [
         (
             "stability_augury",
             "augury APIC N = 1",
-            json!({ "grid_spacing": 0.25, "model": "separation", "iterations": 1 }),
+            AugurySpec {
+                grid_spacing: Some(0.25),
+                model: AuguryModelSpec::Separation,
+                ..AugurySpec::default()
+            },
         ),
         (
             "stability_penalty",
             "penalty baseline",
-            json!({ "contact": "penalty", "penalty": { "stiffness": 2e3, "band": 0.0625 } }),
+            penalty(2e3, 0.0625),
         ),
     ] {
-        let stable = ctx.stable_dt(&serde_json::to_string(&base)?)?;
+        let stable = ctx.stable_dt(&base)?;
         let mut runs = Vec::new();
         for &v0 in speeds {
             for &f in fractions {
                 let mut v = base.clone();
-                v["augury"] = aug.clone();
-                v["bodies"][0]["velocity"] = json!([v0, 0.0]);
-                v["bodies"][1]["velocity"] = json!([-v0, 0.0]);
+                v.augury = Some(aug.clone());
+                fem_body(&mut v, "a")?.velocity = Some(vec![v0, 0.0]);
+                fem_body(&mut v, "b")?.velocity = Some(vec![-v0, 0.0]);
                 // The blocks are 1 m apart: run until twice the meeting time, at least 0.8 s.
-                v["time"]["duration"] = json!((1.0 / v0).max(0.4) * 2.0);
-                let dt = f * stable;
-                v["time"]["dt"] = json!(dt);
+                v.time.duration = (1.0 / v0).max(0.4) * 2.0;
+                v.time.dt = f * stable;
                 let label = format!("{stem}_v{v0}_f{f}");
-                let r = ctx.run_scene(&label, &serde_json::to_string(&v)?, None);
+                let r = ctx.run_scene(&label, &v, None);
                 runs.push((f, v0, classify(r)));
             }
         }
@@ -242,20 +250,23 @@ pub fn run(ctx: &Ctx) -> Result<Outcome> {
             &[0.5, 0.75, 1.0, 1.5, 2.0, 3.0, 4.0],
         ),
     };
-    let stable = ctx.stable_dt(&serde_json::to_string(&base)?)?;
+    let stable = ctx.stable_dt(&base)?;
     let (v0, mesh, dt) = (1.0, 0.125, 0.5 * stable);
     let mut runs = Vec::new();
     let mut at_dt = Vec::new();
     for &ratio in ratios {
         for &k in lookaheads {
             let mut v = base.clone();
-            v["augury"] = json!({
-                "grid_ratio": ratio, "model": "separation", "iterations": 1, "tau": k * dt
+            v.augury = Some(AugurySpec {
+                grid_ratio: Some(ratio),
+                model: AuguryModelSpec::Separation,
+                tau: Some(k * dt),
+                ..AugurySpec::default()
             });
-            v["time"]["dt"] = json!(dt);
-            v["time"]["duration"] = json!(2.0);
+            v.time.dt = dt;
+            v.time.duration = 2.0;
             let label = format!("stability_tau_r{ratio}_k{k}");
-            let class = classify(ctx.run_scene(&label, &serde_json::to_string(&v)?, None));
+            let class = classify(ctx.run_scene(&label, &v, None));
             runs.push((k * dt * v0 / (ratio * mesh), ratio, class));
             if k == 1.0 {
                 at_dt.push((ratio, class));

@@ -9,11 +9,11 @@
 //! Measured: the twist angle of the cube's top under the shell (particles that start in the top
 //! cell layer at 0.1–0.45 m from the axis; the mean of their rotation about the axis).
 
-use anyhow::{Context, Result};
+use anyhow::Result;
 use nalgebra::Vector3;
 
 use super::charts::{self, Chart, Series};
-use super::{Check, Ctx, Outcome, Pictures, Status, Tier};
+use super::{Check, Ctx, Outcome, Pictures, Status, Tier, contact, mpm_grid};
 
 const OMEGA: f64 = std::f64::consts::PI / 5.0;
 
@@ -57,47 +57,35 @@ impl Top {
 
 /// Run the experiment.
 pub fn run(ctx: &Ctx) -> Result<Outcome> {
-    let mut v: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(
-        ctx.root.join("fixtures/scenes/twist.json"),
-    )?)?;
+    let mut spec = ctx.fixture("twist")?;
     // The full tier runs the fixture as committed (the paper's Δt and 5.5 s on h = 0.25; the
     // paper's 0.0625 is 91k particles and even 0.125 is hours per μ here, docs/bfemp.md) for the
     // paper's four μ — its μ = 0.5 run is exactly `femp run fixtures/scenes/twist.json`.
     // Quick: 1.5 s (the compression and 0.1π of twist) at Δt = 5e-2, frictionless and μ = 1
     // (at 2e-2 μ = 1 took 3 808 Newton iterations, 211 s, against 2 358, 108 s, at 5e-2).
-    let h = v["mpm"]["grid_spacing"]
-        .as_f64()
-        .context("fixtures/scenes/twist.json: mpm.grid_spacing")?;
-    let dt = v["time"]["dt"]
-        .as_f64()
-        .context("fixtures/scenes/twist.json: time.dt")?;
-    let duration = v["time"]["duration"]
-        .as_f64()
-        .context("fixtures/scenes/twist.json: time.duration")?;
-    let (dt, duration, mus): (f64, f64, &[f64]) = match ctx.tier {
-        Tier::Quick => (5e-2, 1.5, &[0.0, 1.0]),
-        Tier::Full => (dt, duration, &[0.0, 0.2, 0.5, 1.0]),
+    let h = mpm_grid(&mut spec)?.grid_spacing;
+    let mus: &[f64] = match ctx.tier {
+        Tier::Quick => {
+            spec.time.dt = 5e-2;
+            spec.time.duration = 1.5;
+            &[0.0, 1.0]
+        }
+        Tier::Full => &[0.0, 0.2, 0.5, 1.0],
     };
-    v["time"]["dt"] = serde_json::json!(dt);
-    v["time"]["duration"] = serde_json::json!(duration);
+    let (dt, duration) = (spec.time.dt, spec.time.duration);
     let mut out = Outcome::default();
     let mut series = Vec::new();
     let mut maxima = Vec::new();
     for (k, &mu) in mus.iter().enumerate() {
-        v["contact"]["friction"] = serde_json::json!(mu);
+        contact(&mut spec)?.friction = mu;
         let label = format!("twist_mu{mu}");
         let pictures = (mu == 1.0).then(|| Pictures::keys("μ = 1", 3).gif().up(2));
         let mut top: Option<Top> = None;
-        let (r, samples) = ctx.run_scene_keep::<3, (f64, f64)>(
-            &label,
-            &serde_json::to_string(&v)?,
-            pictures,
-            |w| {
-                let x = &w.mpm.as_ref().expect("the cube is MPM").x;
-                let a = top.get_or_insert_with(|| Top::of(x, h)).angle(x);
-                (w.time, a)
-            },
-        )?;
+        let (r, samples) = ctx.run_scene_keep::<3, (f64, f64)>(&label, &spec, pictures, |w| {
+            let x = &w.mpm.as_ref().expect("the cube is MPM").x;
+            let a = top.get_or_insert_with(|| Top::of(x, h)).angle(x);
+            (w.time, a)
+        })?;
         let r = match r {
             Ok(r) => r,
             Err(e) => {

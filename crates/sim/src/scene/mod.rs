@@ -26,6 +26,18 @@ pub struct Scene {
     pub source: Option<String>,
 }
 
+impl SceneSpec {
+    /// The scene as JSON in the scene file format: [`parse`] reads it back to an equal spec. A
+    /// program builds or edits scenes as these typed values (field names checked by the
+    /// compiler) and runs them through this text, which is also what a run copies into its
+    /// output directory.
+    pub fn to_json(&self) -> String {
+        // Every field is a number, string, bool, sequence or struct: nothing can fail (a
+        // non-finite number is written as `null`, which `parse` then names).
+        serde_json::to_string_pretty(self).expect("a scene spec is plain data")
+    }
+}
+
 /// The largest scene file [`load`] reads (64 MiB; scenes are a few kB, a long vertex list a
 /// few MB).
 pub const MAX_SCENE_BYTES: u64 = 64 << 20;

@@ -2,10 +2,10 @@
 //! `docs/scenes.md`). Unknown fields are errors. Vectors are plain arrays whose length must
 //! equal the scene's dimension (checked in [`super::validate`]).
 
-use serde::Deserialize;
+use serde::{Deserialize, Serialize};
 
 /// A whole scene file.
-#[derive(Debug, Clone, Deserialize)]
+#[derive(Debug, Clone, Deserialize, Serialize)]
 #[serde(deny_unknown_fields)]
 pub struct SceneSpec {
     /// Name (defaults to the file stem).
@@ -43,7 +43,7 @@ pub struct SceneSpec {
 
 /// Settings of the `augury` method: explicit central differences with APIC augury contact on a
 /// background grid (or the search-based penalty baseline).
-#[derive(Debug, Clone, Deserialize)]
+#[derive(Debug, Clone, Deserialize, Serialize)]
 #[serde(deny_unknown_fields)]
 pub struct AugurySpec {
     /// Background grid spacing (m). Give this or `grid_ratio`, not both.
@@ -83,7 +83,7 @@ pub struct AugurySpec {
 }
 
 /// How fully prescribed bodies (plates, walls) enter the augury correction.
-#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Deserialize)]
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Deserialize, Serialize)]
 #[serde(rename_all = "snake_case")]
 pub enum AuguryObstaclesSpec {
     /// With their lumped masses (the paper's formulation).
@@ -98,7 +98,7 @@ fn one_usize() -> usize {
 }
 
 /// Quadratic B-spline kernel of the background grid.
-#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Deserialize)]
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Deserialize, Serialize)]
 #[serde(rename_all = "snake_case")]
 pub enum KernelSpec {
     /// The standard 3-node-per-axis kernel, `D_p = ¼h²I`.
@@ -109,7 +109,7 @@ pub enum KernelSpec {
 }
 
 /// Transfer of the augury correction.
-#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Deserialize)]
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Deserialize, Serialize)]
 #[serde(rename_all = "snake_case")]
 pub enum AuguryTransferSpec {
     /// APIC: conserves linear and angular momentum.
@@ -120,7 +120,7 @@ pub enum AuguryTransferSpec {
 }
 
 /// The contact model of the augury iterations.
-#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Deserialize)]
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Deserialize, Serialize)]
 #[serde(rename_all = "snake_case")]
 pub enum AuguryModelSpec {
     /// No iterations: bodies stick on contact.
@@ -133,7 +133,7 @@ pub enum AuguryModelSpec {
 }
 
 /// Contact handling of an augury scene.
-#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Deserialize)]
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Deserialize, Serialize)]
 #[serde(rename_all = "snake_case")]
 pub enum AuguryContactSpec {
     /// APIC/PIC augury contact.
@@ -146,7 +146,7 @@ pub enum AuguryContactSpec {
 }
 
 /// The penalty baseline's parameters.
-#[derive(Debug, Clone, Deserialize)]
+#[derive(Debug, Clone, Deserialize, Serialize)]
 #[serde(deny_unknown_fields)]
 pub struct PenaltySpec {
     /// Force per unit penetration (N/m in 3D; N/m per unit thickness in 2D).
@@ -156,7 +156,7 @@ pub struct PenaltySpec {
 }
 
 /// The simulation method.
-#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Deserialize)]
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Deserialize, Serialize)]
 #[serde(rename_all = "snake_case")]
 pub enum Method {
     /// Implicit MPM–FEM coupling through barrier contact.
@@ -167,7 +167,7 @@ pub enum Method {
 }
 
 /// Time stepping.
-#[derive(Debug, Clone, Deserialize)]
+#[derive(Debug, Clone, Deserialize, Serialize)]
 #[serde(deny_unknown_fields)]
 pub struct TimeSpec {
     /// Time step Δt (s).
@@ -183,7 +183,7 @@ pub struct TimeSpec {
 }
 
 /// Integrator choice.
-#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Deserialize)]
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Deserialize, Serialize)]
 #[serde(rename_all = "snake_case")]
 pub enum IntegratorSpec {
     /// Backward Euler.
@@ -194,7 +194,7 @@ pub enum IntegratorSpec {
 }
 
 /// Solver settings.
-#[derive(Debug, Clone, Deserialize)]
+#[derive(Debug, Clone, Deserialize, Serialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct SolverSpec {
     /// Newton tolerance ε_d on ‖p‖∞/Δt (m/s).
@@ -221,7 +221,7 @@ pub struct SolverSpec {
 }
 
 /// The Newton direction's linear solver (`solver.linear`).
-#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Deserialize)]
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Deserialize, Serialize)]
 #[serde(rename_all = "snake_case")]
 pub enum LinearSpec {
     /// Sparse Cholesky of every Hessian.
@@ -232,7 +232,7 @@ pub enum LinearSpec {
 }
 
 /// When the Newton iterations PSD-project the Hessian (`solver.projection`).
-#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Deserialize)]
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Deserialize, Serialize)]
 #[serde(rename_all = "snake_case")]
 pub enum ProjectionSpec {
     /// Every iteration (projected Newton; the papers' method).
@@ -260,7 +260,7 @@ impl Default for SolverSpec {
 }
 
 /// MPM settings shared by all MPM bodies.
-#[derive(Debug, Clone, Deserialize)]
+#[derive(Debug, Clone, Deserialize, Serialize)]
 #[serde(deny_unknown_fields)]
 pub struct MpmSpec {
     /// Grid spacing h (m).
@@ -278,7 +278,7 @@ fn one() -> f64 {
 }
 
 /// Particle–grid transfer.
-#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Deserialize)]
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Deserialize, Serialize)]
 #[serde(rename_all = "snake_case")]
 pub enum TransferSpec {
     /// Affine particle-in-cell.
@@ -291,7 +291,7 @@ pub enum TransferSpec {
 }
 
 /// A material.
-#[derive(Debug, Clone, Deserialize)]
+#[derive(Debug, Clone, Deserialize, Serialize)]
 #[serde(deny_unknown_fields)]
 pub struct MaterialSpec {
     /// Constitutive model.
@@ -307,7 +307,7 @@ pub struct MaterialSpec {
 }
 
 /// Constitutive model.
-#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Deserialize)]
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Deserialize, Serialize)]
 #[serde(rename_all = "snake_case")]
 pub enum ModelSpec {
     /// Compressible neo-Hookean.
@@ -318,7 +318,7 @@ pub enum ModelSpec {
 }
 
 /// Initial angular velocity: a scalar in 2D (about z), a vector in 3D.
-#[derive(Debug, Clone, Deserialize)]
+#[derive(Debug, Clone, Deserialize, Serialize)]
 #[serde(untagged)]
 pub enum AngularSpec {
     /// 2D.
@@ -329,7 +329,7 @@ pub enum AngularSpec {
 
 /// A rigid placement applied to a generated shape or mesh: rotate about `about` (default: the
 /// origin), then translate.
-#[derive(Debug, Clone, Default, Deserialize)]
+#[derive(Debug, Clone, Default, Deserialize, Serialize)]
 #[serde(deny_unknown_fields)]
 pub struct TransformSpec {
     /// Rotation angle in degrees (2D: counter-clockwise; 3D: about `axis`).
@@ -372,6 +372,24 @@ impl BodySpec {
 /// path by [`super::parse`]).
 pub(crate) const NESTED_PATH: &str = "\u{1}";
 
+/// Written as the body's fields and its `kind`, as read.
+impl Serialize for BodySpec {
+    fn serialize<S: serde::Serializer>(&self, se: S) -> Result<S::Ok, S::Error> {
+        use serde::ser::Error;
+        let (kind, body) = match self {
+            BodySpec::Mpm(b) => ("mpm", serde_json::to_value(b)),
+            BodySpec::Fem(b) => ("fem", serde_json::to_value(b)),
+        };
+        let serde_json::Value::Object(fields) = body.map_err(S::Error::custom)? else {
+            return Err(S::Error::custom("a body serialises to an object"));
+        };
+        let mut map = serde_json::Map::with_capacity(fields.len() + 1);
+        map.insert("kind".into(), kind.into());
+        map.extend(fields);
+        map.serialize(se)
+    }
+}
+
 impl<'de> Deserialize<'de> for BodySpec {
     fn deserialize<De: serde::Deserializer<'de>>(de: De) -> Result<Self, De::Error> {
         use serde::de::Error;
@@ -410,7 +428,7 @@ impl<'de> Deserialize<'de> for BodySpec {
 }
 
 /// An MPM body: material points filling a region, on the scene's background grid.
-#[derive(Debug, Clone, Deserialize)]
+#[derive(Debug, Clone, Deserialize, Serialize)]
 #[serde(deny_unknown_fields)]
 pub struct MpmBody {
     /// Unique name.
@@ -431,7 +449,7 @@ pub struct MpmBody {
 }
 
 /// A FEM body: a mesh, optionally placed, with vertex sets of prescribed motion.
-#[derive(Debug, Clone, Deserialize)]
+#[derive(Debug, Clone, Deserialize, Serialize)]
 #[serde(deny_unknown_fields)]
 pub struct FemBody {
     /// Unique name.
@@ -455,7 +473,7 @@ pub struct FemBody {
 }
 
 /// An MPM region.
-#[derive(Debug, Clone, Deserialize)]
+#[derive(Debug, Clone, Deserialize, Serialize)]
 #[serde(rename_all = "snake_case", deny_unknown_fields)]
 pub enum ShapeSpec {
     /// Axis-aligned box `[min, max]` (before `transform`).
@@ -507,7 +525,7 @@ pub enum ShapeSpec {
 }
 
 /// Particle placement in round shapes.
-#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Deserialize)]
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Deserialize, Serialize)]
 #[serde(rename_all = "snake_case")]
 pub enum Sampling {
     /// The regular sub-grid of the background grid (`particles_per_cell`): the boundary is a
@@ -520,7 +538,7 @@ pub enum Sampling {
 }
 
 /// A FEM mesh.
-#[derive(Debug, Clone, Deserialize)]
+#[derive(Debug, Clone, Deserialize, Serialize)]
 #[serde(rename_all = "snake_case", deny_unknown_fields)]
 pub enum MeshSpec {
     /// Rectangle with `cells = [nx, ny]`.
@@ -598,7 +616,7 @@ pub enum MeshSpec {
 }
 
 /// Vertices with prescribed motion.
-#[derive(Debug, Clone, Deserialize)]
+#[derive(Debug, Clone, Deserialize, Serialize)]
 #[serde(deny_unknown_fields)]
 pub struct PrescribedSpec {
     /// Which vertices.
@@ -608,7 +626,7 @@ pub struct PrescribedSpec {
 }
 
 /// A vertex set.
-#[derive(Debug, Clone, Deserialize)]
+#[derive(Debug, Clone, Deserialize, Serialize)]
 #[serde(rename_all = "snake_case", deny_unknown_fields)]
 pub enum VertexSelector {
     /// Every vertex (the body becomes a moving boundary, BFEMP §4.4).
@@ -632,7 +650,7 @@ pub enum VertexSelector {
 }
 
 /// One segment of a motion script.
-#[derive(Debug, Clone, Deserialize)]
+#[derive(Debug, Clone, Deserialize, Serialize)]
 #[serde(deny_unknown_fields)]
 pub struct MotionSegment {
     /// End time of the segment (s).
@@ -650,7 +668,7 @@ pub struct MotionSegment {
 }
 
 /// Contact settings.
-#[derive(Debug, Clone, Deserialize)]
+#[derive(Debug, Clone, Deserialize, Serialize)]
 #[serde(deny_unknown_fields)]
 pub struct ContactSpec {
     /// Activation distance d̂ (m).
@@ -672,7 +690,7 @@ pub struct ContactSpec {
 }
 
 /// The barrier's Hessian approximation (femp-contact's `BarrierHessian`).
-#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Deserialize)]
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Deserialize, Serialize)]
 #[serde(rename_all = "snake_case")]
 pub enum BarrierHessianSpec {
     /// The exact Hessian with negative eigenvalues clipped per term (the IPC default).
@@ -688,7 +706,7 @@ fn default_eps_v() -> f64 {
 }
 
 /// Overrides for one pair of bodies.
-#[derive(Debug, Clone, Deserialize)]
+#[derive(Debug, Clone, Deserialize, Serialize)]
 #[serde(deny_unknown_fields)]
 pub struct PairSpec {
     /// The two body names.
@@ -715,7 +733,7 @@ fn yes() -> bool {
 }
 
 /// A level-set boundary on the MPM grid.
-#[derive(Debug, Clone, Deserialize)]
+#[derive(Debug, Clone, Deserialize, Serialize)]
 #[serde(deny_unknown_fields)]
 pub struct BoundarySpec {
     /// Geometry: the solid side is where the level set is negative.
@@ -728,7 +746,7 @@ pub struct BoundarySpec {
 }
 
 /// Level-set geometry.
-#[derive(Debug, Clone, Deserialize)]
+#[derive(Debug, Clone, Deserialize, Serialize)]
 #[serde(rename_all = "snake_case", deny_unknown_fields)]
 pub enum BoundaryShape {
     /// The half-space behind a plane: solid where `(x − point)·normal < 0`.
@@ -753,11 +771,225 @@ pub enum BoundaryShape {
 }
 
 /// Boundary condition on grid nodes inside a level set.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize, Serialize)]
 #[serde(rename_all = "snake_case")]
 pub enum BoundaryCondition {
     /// Node velocity = boundary velocity.
     NoSlip,
     /// Normal component of the relative velocity = 0.
     Slip,
+}
+
+// Constructors for scenes built in code: the required fields as arguments, every other field
+// as a scene file without it reads (tested against parsing such a file).
+
+impl SceneSpec {
+    /// A `dimension`-D BFEMP scene of `time`, with no bodies yet, no gravity and the default
+    /// solver.
+    pub fn new(dimension: usize, time: TimeSpec) -> Self {
+        Self {
+            name: None,
+            dimension,
+            method: Method::default(),
+            gravity: None,
+            time,
+            solver: SolverSpec::default(),
+            mpm: None,
+            bodies: Vec::new(),
+            contact: None,
+            boundaries: Vec::new(),
+            augury: None,
+        }
+    }
+}
+
+impl TimeSpec {
+    /// Steps of `dt` for `duration` seconds, backward Euler, a frame every step.
+    pub fn new(dt: f64, duration: f64) -> Self {
+        Self {
+            dt,
+            duration,
+            integrator: IntegratorSpec::default(),
+            frame_interval: None,
+        }
+    }
+}
+
+impl MpmSpec {
+    /// A grid of spacing `grid_spacing` with the default (APIC) transfer.
+    pub fn new(grid_spacing: f64) -> Self {
+        Self {
+            grid_spacing,
+            transfer: TransferSpec::default(),
+            flip_ratio: one(),
+        }
+    }
+}
+
+impl MaterialSpec {
+    /// The default model (neo-Hookean) with Young's modulus `e`, Poisson's ratio `nu` and
+    /// density `rho`.
+    pub fn new(e: f64, nu: f64, rho: f64) -> Self {
+        Self {
+            model: ModelSpec::default(),
+            youngs_modulus: e,
+            nu,
+            rho,
+        }
+    }
+}
+
+impl MpmBody {
+    /// Particles filling `shape`, at rest, with the default particles per cell.
+    pub fn new(name: impl Into<String>, shape: ShapeSpec, material: MaterialSpec) -> Self {
+        Self {
+            name: name.into(),
+            shape,
+            particles_per_cell: None,
+            material,
+            velocity: None,
+            angular_velocity: None,
+        }
+    }
+}
+
+impl FemBody {
+    /// `mesh` where it is, at rest, free.
+    pub fn new(name: impl Into<String>, mesh: MeshSpec, material: MaterialSpec) -> Self {
+        Self {
+            name: name.into(),
+            mesh,
+            transform: None,
+            material,
+            velocity: None,
+            angular_velocity: None,
+            prescribed: Vec::new(),
+        }
+    }
+}
+
+impl ContactSpec {
+    /// Barrier contact with activation distance `dhat` and stiffness `kappa`, frictionless.
+    pub fn new(dhat: f64, kappa: f64) -> Self {
+        Self {
+            dhat,
+            kappa,
+            friction: 0.0,
+            eps_v: default_eps_v(),
+            hessian: BarrierHessianSpec::default(),
+            pairs: Vec::new(),
+        }
+    }
+}
+
+impl PairSpec {
+    /// No override yet for the pair of bodies `a` and `b`.
+    pub fn new(a: impl Into<String>, b: impl Into<String>) -> Self {
+        Self {
+            bodies: [a.into(), b.into()],
+            enabled: yes(),
+            dhat: None,
+            kappa: None,
+            friction: None,
+            eps_v: None,
+        }
+    }
+}
+
+impl MotionSegment {
+    /// Until `until`, no motion (overwrite `velocity` or `angular_velocity` to move).
+    pub fn until(until: f64) -> Self {
+        Self {
+            until,
+            velocity: None,
+            angular_velocity: None,
+            center: None,
+        }
+    }
+}
+
+impl Default for AugurySpec {
+    fn default() -> Self {
+        Self {
+            grid_spacing: None,
+            grid_ratio: None,
+            kernel: KernelSpec::default(),
+            transfer: AuguryTransferSpec::default(),
+            tau: None,
+            iterations: one_usize(),
+            model: AuguryModelSpec::default(),
+            friction: 0.0,
+            contact: AuguryContactSpec::default(),
+            penalty: None,
+            obstacles: AuguryObstaclesSpec::default(),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn read<T: serde::de::DeserializeOwned>(json: &str) -> T {
+        serde_json::from_str(json).unwrap()
+    }
+
+    /// Each constructor's defaults are those of a scene file that leaves the fields out.
+    #[test]
+    fn constructors_default_as_a_scene_file_does() {
+        let same = |a: &dyn std::fmt::Debug, b: &dyn std::fmt::Debug| {
+            assert_eq!(format!("{a:?}"), format!("{b:?}"))
+        };
+        same(
+            &SceneSpec::new(2, TimeSpec::new(0.1, 1.0)),
+            &read::<SceneSpec>(
+                r#"{"dimension": 2, "time": {"dt": 0.1, "duration": 1.0}, "bodies": []}"#,
+            ),
+        );
+        same(
+            &MpmSpec::new(0.5),
+            &read::<MpmSpec>(r#"{"grid_spacing": 0.5}"#),
+        );
+        same(
+            &MaterialSpec::new(1e6, 0.3, 1e3),
+            &read::<MaterialSpec>(r#"{"E": 1e6, "nu": 0.3, "rho": 1e3}"#),
+        );
+        let shape = || ShapeSpec::Box {
+            min: vec![0.0, 0.0],
+            max: vec![1.0, 1.0],
+            transform: None,
+        };
+        same(
+            &MpmBody::new("a", shape(), MaterialSpec::new(1.0, 0.3, 1.0)),
+            &read::<MpmBody>(
+                r#"{"name": "a", "shape": {"box": {"min": [0, 0], "max": [1, 1]}},
+                    "material": {"E": 1, "nu": 0.3, "rho": 1}}"#,
+            ),
+        );
+        let mesh = || MeshSpec::Rectangle {
+            min: vec![0.0, 0.0],
+            max: vec![1.0, 1.0],
+            cells: vec![2, 2],
+        };
+        same(
+            &FemBody::new("b", mesh(), MaterialSpec::new(1.0, 0.3, 1.0)),
+            &read::<FemBody>(
+                r#"{"name": "b", "mesh": {"rectangle": {"min": [0, 0], "max": [1, 1],
+                    "cells": [2, 2]}}, "material": {"E": 1, "nu": 0.3, "rho": 1}}"#,
+            ),
+        );
+        same(
+            &ContactSpec::new(1e-3, 1e5),
+            &read::<ContactSpec>(r#"{"dhat": 1e-3, "kappa": 1e5}"#),
+        );
+        same(
+            &PairSpec::new("a", "b"),
+            &read::<PairSpec>(r#"{"bodies": ["a", "b"]}"#),
+        );
+        same(
+            &MotionSegment::until(2.0),
+            &read::<MotionSegment>(r#"{"until": 2.0}"#),
+        );
+        same(&AugurySpec::default(), &read::<AugurySpec>("{}"));
+    }
 }
