@@ -2,10 +2,11 @@
 //! types are checked by the compiler, and every scene still goes through `femp`'s own parser
 //! and validation on its way to a run (`Ctx::scene`).
 
+use anyhow::{Context, Result};
 use femp::scene::{
     AuguryContactSpec, AugurySpec, BodySpec, BoundaryCondition, BoundaryShape, BoundarySpec,
-    FemBody, MaterialSpec, MeshSpec, ModelSpec, MotionSegment, MpmBody, PenaltySpec,
-    PrescribedSpec, ShapeSpec, VertexSelector,
+    ContactSpec, FemBody, MaterialSpec, MeshSpec, ModelSpec, MotionSegment, MpmBody, MpmSpec,
+    PenaltySpec, PrescribedSpec, SceneSpec, ShapeSpec, VertexSelector,
 };
 
 /// An MPM body filling `shape` with `ppc` particles per cell.
@@ -93,7 +94,7 @@ pub fn penalty(stiffness: f64, band: f64) -> AugurySpec {
 }
 
 /// Set the cell counts of `body`'s box mesh.
-pub fn cuboid_cells(body: &mut FemBody, n: [usize; 3]) -> anyhow::Result<()> {
+pub fn cuboid_cells(body: &mut FemBody, n: [usize; 3]) -> Result<()> {
     match &mut body.mesh {
         MeshSpec::Cuboid { cells, .. } => {
             *cells = n.to_vec();
@@ -101,4 +102,38 @@ pub fn cuboid_cells(body: &mut FemBody, n: [usize; 3]) -> anyhow::Result<()> {
         }
         other => anyhow::bail!("`{}` is not a cuboid mesh: {other:?}", body.name),
     }
+}
+
+/// The MPM body named `name` in `spec`.
+pub fn mpm_body<'s>(spec: &'s mut SceneSpec, name: &str) -> Result<&'s mut MpmBody> {
+    spec.bodies
+        .iter_mut()
+        .find_map(|b| match b {
+            BodySpec::Mpm(b) if b.name == name => Some(b),
+            _ => None,
+        })
+        .with_context(|| format!("the scene has no MPM body `{name}`"))
+}
+
+/// The FEM body named `name` in `spec`.
+pub fn fem_body<'s>(spec: &'s mut SceneSpec, name: &str) -> Result<&'s mut FemBody> {
+    spec.bodies
+        .iter_mut()
+        .find_map(|b| match b {
+            BodySpec::Fem(b) if b.name == name => Some(b),
+            _ => None,
+        })
+        .with_context(|| format!("the scene has no FEM body `{name}`"))
+}
+
+/// The contact settings of `spec`.
+pub fn contact(spec: &mut SceneSpec) -> Result<&mut ContactSpec> {
+    spec.contact
+        .as_mut()
+        .context("the scene has no `contact` settings")
+}
+
+/// The MPM grid settings of `spec`.
+pub fn mpm_grid(spec: &mut SceneSpec) -> Result<&mut MpmSpec> {
+    spec.mpm.as_mut().context("the scene has no `mpm` settings")
 }

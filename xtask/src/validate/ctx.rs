@@ -1,0 +1,258 @@
+//! What an experiment runs its scenes through: [`Ctx`] (tier, directories, progress bars, the
+//! runs' pictures) and [`Pictures`], chosen where a run starts.
+
+use std::path::PathBuf;
+
+use anyhow::{Context, Result};
+use femp::metrics::Metrics;
+use femp::run::{RunOptions, RunResult, run_with};
+use femp::scene::SceneSpec;
+
+use super::{Outcome, Tier};
+
+/// The scene pictures the report shows of one run, chosen where the experiment starts the run
+/// (`Pictures::keys("caption", 3).gif()`).
+#[derive(Clone, Debug)]
+pub struct Pictures {
+    /// Caption in the report.
+    pub(super) caption: String,
+    /// Key frames, evenly spaced from start to end.
+    pub(super) keys: usize,
+    /// Show only the last key frame.
+    pub(super) last_only: bool,
+    /// Make a GIF.
+    pub(super) gif: bool,
+    /// The axis drawn up in 3D (`None`: against gravity).
+    pub(super) up: Option<usize>,
+}
+
+impl Pictures {
+    /// `keys` key frames (at least 2: the first and the last) shown side by side under
+    /// `caption`.
+    pub fn keys(caption: impl Into<String>, keys: usize) -> Self {
+        Self {
+            caption: caption.into(),
+            keys: keys.max(2),
+            last_only: false,
+            gif: false,
+            up: None,
+        }
+    }
+
+    /// Show only the last key frame.
+    pub fn last_only(self) -> Self {
+        Self {
+            last_only: true,
+            ..self
+        }
+    }
+
+    /// Also make and show an animated GIF.
+    pub fn gif(self) -> Self {
+        Self { gif: true, ..self }
+    }
+
+    /// Draw 3D pictures with `axis` up.
+    pub fn up(self, axis: usize) -> Self {
+        Self {
+            up: Some(axis),
+            ..self
+        }
+    }
+}
+
+/// Everything an experiment needs.
+pub struct Ctx {
+    /// Tier.
+    pub tier: Tier,
+    /// The experiment's own output directory.
+    pub dir: PathBuf,
+    /// Charts directory (shared).
+    pub charts: PathBuf,
+    /// Workspace root (for fixtures).
+    pub root: PathBuf,
+    pub(super) progress: indicatif::MultiProgress,
+    /// Pictured runs so far: label, caption, which files to show.
+    pub(super) pictured: std::cell::RefCell<Vec<(String, String, usize, bool)>>,
+}
+
+impl Ctx {
+    /// Render options for `pictures` of the run `label`, which is remembered for
+    /// [`Ctx::collect_pictures`].
+    pub(super) fn picture_options(
+        &self,
+        label: &str,
+        pictures: Option<Pictures>,
+    ) -> Option<femp::render::PictureOptions> {
+        let Pictures {
+            caption,
+            keys,
+            last_only,
+            gif,
+            up,
+        } = pictures?;
+        self.pictured
+            .borrow_mut()
+            .push((label.to_string(), caption, keys, last_only));
+        Some(femp::render::PictureOptions {
+            key_frames: keys,
+            gif_frames: if gif { 30 } else { 0 },
+            size: (320, 240),
+            gif_delay_ms: 120,
+            up,
+        })
+    }
+
+    /// Copy the pictures of the runs made so far into the charts directory and list them in
+    /// `out` (key frames side by side, then the GIF if there is one).
+    pub(super) fn collect_pictures(&self, out: &mut Outcome) -> Result<()> {
+        for (label, caption, keys, last_only) in self.pictured.borrow_mut().drain(..) {
+            let src = self.dir.join(&label).join("pictures");
+            std::fs::create_dir_all(&self.charts)?;
+            let mut files = Vec::new();
+            let first = if last_only { keys - 1 } else { 0 };
+            for k in first..keys {
+                let name = format!("key_{k:02}.png");
+                if !src.join(&name).exists() {
+                    continue; // the run stopped early
+                }
+                let dst = self.charts.join(format!("scene_{label}_{name}"));
+                std::fs::copy(src.join(&name), &dst)
+                    .with_context(|| format!("copying {}", src.join(&name).display()))?;
+                files.push(dst);
+            }
+            if src.join("animation.gif").exists() {
+                let dst = self.charts.join(format!("scene_{label}.gif"));
+                std::fs::copy(src.join("animation.gif"), &dst)?;
+                files.push(dst);
+            }
+            out.pictures.push((caption, files));
+        }
+        Ok(())
+    }
+
+    /// The committed scene `fixtures/scenes/{name}.json` as a typed value to edit and run
+    /// (through [`SceneSpec::to_json`]).
+    pub fn fixture(&self, name: &str) -> Result<SceneSpec> {
+        let path = self.root.join(format!("fixtures/scenes/{name}.json"));
+        Ok(femp::scene::load(&path)?.spec)
+    }
+
+    /// `spec` parsed back from its text and validated, as `femp run` would read it (relative
+    /// paths against `fixtures/scenes/`); the text is what the run copies into its directory.
+    pub fn scene(&self, label: &str, spec: &SceneSpec) -> Result<femp::scene::Scene> {
+        Ok(femp::scene::parse(
+            &spec.to_json(),
+            label,
+            self.root.join("fixtures/scenes"),
+            label,
+        )?)
+    }
+
+    /// The 2D world of `spec`, built but not run (to probe it).
+    pub fn probe(&self, spec: &SceneSpec) -> Result<femp::World<2>> {
+        Ok(femp::World::<2>::build(self.scene("probe", spec)?)?)
+    }
+
+    /// The explicit stability estimate of the 2D augury scene `spec`, from a probe build.
+    pub fn stable_dt(&self, spec: &SceneSpec) -> Result<f64> {
+        let world = self.probe(spec)?;
+        world
+            .augury()
+            .map(|a| a.stable_dt)
+            .ok_or_else(|| anyhow::anyhow!("the probe scene is not an augury scene"))
+    }
+
+    /// Run a 2D scene, recording `probe(world)` after every step.
+    pub fn run_scene_2d<T>(
+        &self,
+        label: &str,
+        spec: &SceneSpec,
+        pictures: Option<Pictures>,
+        probe: impl FnMut(&femp::World<2>) -> T,
+    ) -> Result<(RunResult, Vec<T>)> {
+        self.run_scene_probe::<2, T>(label, spec, pictures, probe)
+    }
+
+    /// Run a `D`-dimensional scene, recording `probe(world)` after every step.
+    pub fn run_scene_probe<const D: usize, T>(
+        &self,
+        label: &str,
+        spec: &SceneSpec,
+        pictures: Option<Pictures>,
+        probe: impl FnMut(&femp::World<D>) -> T,
+    ) -> Result<(RunResult, Vec<T>)> {
+        let (r, probes) = self.run_scene_keep::<D, T>(label, spec, pictures, probe)?;
+        Ok((r?, probes))
+    }
+
+    /// Run a `D`-dimensional scene, recording `probe(world)` after every step (and `pictures`
+    /// of it); a run that fails mid-way still returns its probes.
+    pub fn run_scene_keep<const D: usize, T>(
+        &self,
+        label: &str,
+        spec: &SceneSpec,
+        pictures: Option<Pictures>,
+        mut probe: impl FnMut(&femp::World<D>) -> T,
+    ) -> Result<(Result<RunResult, femp::SimError>, Vec<T>)> {
+        let scene = self.scene(label, spec)?;
+        anyhow::ensure!(scene.spec.dimension == D, "{label}: not a {D}D scene");
+        let bar = self.bar(label, &scene);
+        let out = self.dir.join(label);
+        let opts = RunOptions {
+            no_frames: true,
+            pictures: self.picture_options(label, pictures),
+            // A validation run replaces the same run's outputs from an earlier `validate`.
+            overwrite: true,
+            ..Default::default()
+        };
+        let mut probes = Vec::new();
+        let r = run_with::<D>(scene, &out, &opts, |w, _: &Metrics| {
+            probes.push(probe(w));
+            bar.inc(1);
+        });
+        bar.finish_and_clear();
+        self.progress.remove(&bar);
+        Ok((r, probes))
+    }
+
+    pub(super) fn bar(&self, label: &str, scene: &femp::scene::Scene) -> indicatif::ProgressBar {
+        let steps = (scene.spec.time.duration / scene.spec.time.dt).ceil() as u64;
+        let bar = self.progress.add(indicatif::ProgressBar::new(steps));
+        bar.set_style(
+            indicatif::ProgressStyle::with_template(
+                "  {prefix:28} {bar:30} {pos}/{len} steps [{elapsed_precise} < {eta_precise}]",
+            )
+            .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
+        );
+        bar.set_prefix(label.to_string());
+        bar
+    }
+
+    /// Run a scene through femp with a progress bar (and `pictures` of it); `label` names the
+    /// run.
+    pub fn run_scene(
+        &self,
+        label: &str,
+        spec: &SceneSpec,
+        pictures: Option<Pictures>,
+    ) -> Result<RunResult> {
+        let scene = self.scene(label, spec)?;
+        let bar = self.bar(label, &scene);
+        let out = self.dir.join(label);
+        let opts = RunOptions {
+            no_frames: true,
+            pictures: self.picture_options(label, pictures),
+            // A validation run replaces the same run's outputs from an earlier `validate`.
+            overwrite: true,
+            ..Default::default()
+        };
+        let r = match scene.spec.dimension {
+            2 => run_with::<2>(scene, &out, &opts, |_, _: &Metrics| bar.inc(1)),
+            _ => run_with::<3>(scene, &out, &opts, |_, _: &Metrics| bar.inc(1)),
+        };
+        bar.finish_and_clear();
+        self.progress.remove(&bar);
+        Ok(r?)
+    }
+}
