@@ -199,13 +199,7 @@ impl Ctx {
         anyhow::ensure!(scene.spec.dimension == D, "{label}: not a {D}D scene");
         let bar = self.bar(label, &scene);
         let out = self.dir.join(label);
-        let opts = RunOptions {
-            no_frames: true,
-            pictures: self.picture_options(label, pictures),
-            // A validation run replaces the same run's outputs from an earlier `validate`.
-            overwrite: true,
-            ..Default::default()
-        };
+        let opts = self.run_options(label, pictures);
         let mut probes = Vec::new();
         let r = run_with::<D>(scene, &out, &opts, |w, _: &Metrics| {
             probes.push(probe(w));
@@ -214,6 +208,17 @@ impl Ctx {
         bar.finish_and_clear();
         self.progress.remove(&bar);
         Ok((r, probes))
+    }
+
+    /// How a run labelled `label` writes: no frames, `pictures` if any, replacing the same
+    /// run's outputs from an earlier `validate`.
+    fn run_options(&self, label: &str, pictures: Option<Pictures>) -> RunOptions {
+        RunOptions {
+            no_frames: true,
+            pictures: self.picture_options(label, pictures),
+            overwrite: true,
+            ..Default::default()
+        }
     }
 
     pub(super) fn bar(&self, label: &str, scene: &femp::scene::Scene) -> indicatif::ProgressBar {
@@ -240,13 +245,7 @@ impl Ctx {
         let scene = self.scene(label, spec)?;
         let bar = self.bar(label, &scene);
         let out = self.dir.join(label);
-        let opts = RunOptions {
-            no_frames: true,
-            pictures: self.picture_options(label, pictures),
-            // A validation run replaces the same run's outputs from an earlier `validate`.
-            overwrite: true,
-            ..Default::default()
-        };
+        let opts = self.run_options(label, pictures);
         let r = match scene.spec.dimension {
             2 => run_with::<2>(scene, &out, &opts, |_, _: &Metrics| bar.inc(1)),
             _ => run_with::<3>(scene, &out, &opts, |_, _: &Metrics| bar.inc(1)),
