@@ -4,6 +4,9 @@
 //! * `ci` — run exactly what `.ci/run` runs: format check, clippy with warnings denied, and the
 //!   README's test command. Every step runs even if an earlier one fails; the exit code is
 //!   non-zero if any failed.
+//! * `validate` — the papers' experiments (`validate/mod.rs`).
+//! * `compact-png FILE…` — re-encode PNGs in place as the published reports' images are (at most
+//!   256 colours, `validate/compact.rs`): for images committed under `docs/` by hand.
 
 mod ci;
 mod validate;
@@ -23,6 +26,14 @@ fn run() -> anyhow::Result<()> {
     match args.first().map(String::as_str) {
         Some("ci") => ci::run(),
         Some("validate") => validate::main(&args[1..]),
+        Some("compact-png") => {
+            anyhow::ensure!(args.len() > 1, "compact-png needs PNG files\n\n{USAGE}");
+            for f in &args[1..] {
+                let path = std::path::Path::new(f);
+                validate::compact_png(path, path)?;
+            }
+            Ok(())
+        }
         Some(other) => anyhow::bail!("unknown task `{other}`\n\n{USAGE}"),
         None => {
             println!("{USAGE}");
@@ -35,4 +46,5 @@ const USAGE: &str = "usage: cargo xtask <task>
 
 tasks:
   ci        format check, clippy -D warnings, and the test suite (what .ci/run runs)
-  validate  the papers' experiments: [--quick | --full] [--only NAME…] [--out DIR]";
+  validate  the papers' experiments: [--quick | --full] [--only NAME…] [--out DIR]
+  compact-png FILE…  re-encode PNGs in place as the reports' images (≤ 256 colours)";

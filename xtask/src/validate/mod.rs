@@ -35,6 +35,7 @@ use std::time::Instant;
 
 use anyhow::{Result, bail};
 
+pub use compact::compact_png;
 pub use ctx::{Ctx, Pictures};
 pub use outcome::{Check, Outcome, Status, Tier};
 use saved::{Done, git_describe, load, save, utc_minute};
