@@ -1,9 +1,10 @@
 //! # femp-augury
 //!
 //! Explicit finite-element dynamics whose boundary nodes interact **only through grid
-//! transfers** — the APIC augury contact of the augury paper (`../shared/papers/
-//! apic-augury-contact.txt`, §2): no geometric search, exact linear momentum, and exact angular
-//! momentum with APIC.
+//! transfers** — the APIC augury contact of the augury paper (the paper whose abstract begins
+//! "An efficient and momentum conserving algorithm for enforcing contact between solid bodies
+//! is proposed"; the project README says how it is cited), §2: no geometric search, exact
+//! linear momentum, and exact angular momentum with APIC.
 //!
 //! * [`Transfer`] — the operator `H` (particle-to-grid then grid-to-particle, PIC or APIC) on
 //!   generalised velocity fields `V = {v, B}` of boundary particles, and `G = H − I`.
