@@ -718,7 +718,11 @@ fn ramp_3d(ctx: &Ctx, out: &mut Outcome, series: &mut Vec<Series>) -> Result<()>
     out.notes.push(format!(
         "3D rows: the paper's ramp scene through `femp run` (`fixtures/scenes/augury_ramp_3d.json`, \
          the ramp flat and gravity turned by 30°, which is the same problem), h ∈ {hs:?}, \
-         displacement of the block's centre of mass along the ramp at t = {t_end} s,          Δt = 2.5e-5 h (the paper's). The look-ahead τ, not Δt, sets the error (2D:          `crates/augury/tests/integration/ramp.rs`): with the paper's τ = Δt the block sticks with one          iteration and the error stops shrinking with ten; with τ = 10 Δt = 2.5e-4 h (the 2D          rows' τ) it converges under refinement."
+         displacement of the block's centre of mass along the ramp at t = {t_end} s, Δt = \
+         2.5e-5 h (the paper's). The look-ahead τ, not Δt, sets the error (2D: \
+         `crates/augury/tests/integration/ramp.rs`): with the paper's τ = Δt the block sticks \
+         with one iteration and the error stops shrinking with ten; with τ = 10 Δt = 2.5e-4 h \
+         (the 2D rows' τ) it converges under refinement."
     ));
     Ok(())
 }
