@@ -10,7 +10,7 @@ use femp_augury::{ContactModel, TransferKind};
 use femp_kernels::Kernel;
 
 use super::charts::{self, Chart, Series};
-use super::scenes::cuboid_cells;
+use super::scenes::{cuboid_cells, name_of};
 use super::{Check, Ctx, Outcome, Pictures, Tier, fem_body};
 
 /// §3.1: two particles in one cell, APIC vs PIC (the ODE of eqs. 49–50 and the same with the
@@ -312,10 +312,8 @@ fn blocks_3d_long(ctx: &Ctx, base: &SceneSpec, out: &mut Outcome) -> Result<()> 
         // Per model: the smallest relative velocity after the rebound's first +20 m/s, and the
         // value at the end.
         let mut after = Vec::new();
-        for (model, tag, iterations) in [
-            (AuguryModelSpec::Sticky, "sticky", 0),
-            (AuguryModelSpec::Friction, "friction", 1),
-        ] {
+        for (model, iterations) in [(AuguryModelSpec::Sticky, 0), (AuguryModelSpec::Friction, 1)] {
+            let tag = name_of(&model);
             let mut v = base.clone();
             for name in ["block1", "block2"] {
                 cuboid_cells(fem_body(&mut v, name)?, [n, n, n])?;
@@ -368,15 +366,13 @@ pub fn blocks_impact_3d(ctx: &Ctx, out: &mut Outcome) -> Result<()> {
     let mut spin = Vec::new();
     let mut losses: Vec<(String, Vec<(f64, f64)>)> = Vec::new();
     for (transfer, model, iterations) in [
-        ("apic", "friction", 1),
-        ("pic", "friction", 1),
-        ("apic", "sticky", 0),
-        ("pic", "sticky", 0),
+        (AuguryTransferSpec::Apic, AuguryModelSpec::Friction, 1),
+        (AuguryTransferSpec::Pic, AuguryModelSpec::Friction, 1),
+        (AuguryTransferSpec::Apic, AuguryModelSpec::Sticky, 0),
+        (AuguryTransferSpec::Pic, AuguryModelSpec::Sticky, 0),
     ] {
-        let tag = format!(
-            "{} N = {iterations}",
-            if transfer == "apic" { "APIC" } else { "PIC" }
-        );
+        let (transfer_name, model_name) = (name_of(&transfer), name_of(&model));
+        let tag = format!("{} N = {iterations}", transfer_name.to_uppercase());
         let mut loss = Vec::new();
         for (k, &h) in hs.iter().enumerate() {
             let n = (3.0 / h).round() as usize;
@@ -387,21 +383,17 @@ pub fn blocks_impact_3d(ctx: &Ctx, out: &mut Outcome) -> Result<()> {
             v.time.dt = 1e-4 * h;
             v.augury = Some(AugurySpec {
                 grid_spacing: Some(2.0 * h),
-                transfer: match transfer {
-                    "apic" => AuguryTransferSpec::Apic,
-                    _ => AuguryTransferSpec::Pic,
-                },
-                model: match model {
-                    "sticky" => AuguryModelSpec::Sticky,
-                    _ => AuguryModelSpec::Friction,
-                },
+                transfer,
+                model,
                 iterations,
                 ..AugurySpec::default()
             });
-            let label = format!("blocks3d_{transfer}_{model}_h{h}");
+            let label = format!("blocks3d_{transfer_name}_{model_name}_h{h}");
             // Relative velocity of the centres of mass along the line joining them
             // (negative: approaching; ≈ 0: stuck together; positive: separating).
-            let pictures = (transfer == "apic" && model == "friction" && h == 1.0)
+            let pictures = (transfer == AuguryTransferSpec::Apic
+                && model == AuguryModelSpec::Friction
+                && h == 1.0)
                 .then(|| Pictures::keys("APIC N = 1, h = 1", 3).gif());
             let (r, sep) =
                 ctx.run_scene_probe::<3, f64>(&label, &v, pictures, centres_relative_velocity)?;
@@ -450,7 +442,7 @@ pub fn blocks_impact_3d(ctx: &Ctx, out: &mut Outcome) -> Result<()> {
                 1e-12,
                 "",
             ));
-            if transfer == "apic" {
+            if transfer == AuguryTransferSpec::Apic {
                 out.checks.push(Check::at_most(
                     &format!("3D {tag}, h = {h}: max |ΔL| / (6 m · Σm|v|)"),
                     dl_max,
@@ -482,7 +474,7 @@ pub fn blocks_impact_3d(ctx: &Ctx, out: &mut Outcome) -> Result<()> {
                 "shrinks with h for APIC (paper Fig. 9)".into(),
             ));
             let every = (m.len() / 200).max(1);
-            let dashed = transfer == "pic";
+            let dashed = transfer == AuguryTransferSpec::Pic;
             if iterations == 1 {
                 energy.push(Series {
                     label: format!("{tag}, h = {h}"),

@@ -28,7 +28,7 @@ use femp::scene::{
 };
 
 use super::charts::{self, Chart, Series, Style};
-use super::scenes::{bodies, linear, mpm, particle_box, penalty, prescribed, rectangle};
+use super::scenes::{bodies, linear, mpm, name_of, particle_box, penalty, prescribed, rectangle};
 use super::{Check, Ctx, Outcome, Pictures, Tier};
 
 const G: f64 = 9.81;
@@ -407,14 +407,11 @@ fn impact(ctx: &Ctx, out: &mut Outcome) -> Result<()> {
     let mut points: Vec<Point> = Vec::new();
     let mut failed = Vec::new();
     for &h in hs {
-        for (method, integrator, tag) in [
-            (
-                "BFEMP backward Euler",
-                IntegratorSpec::BackwardEuler,
-                "backward_euler",
-            ),
-            ("BFEMP Newmark", IntegratorSpec::Newmark, "newmark"),
+        for (method, integrator) in [
+            ("BFEMP backward Euler", IntegratorSpec::BackwardEuler),
+            ("BFEMP Newmark", IntegratorSpec::Newmark),
         ] {
+            let tag = name_of(&integrator);
             for &dt in bfemp_dts {
                 let label = format!("impact_bfemp_{tag}_h{h}_dt{dt}");
                 let pictures = (integrator == IntegratorSpec::Newmark

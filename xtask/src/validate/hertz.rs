@@ -114,8 +114,9 @@ pub(super) fn run_variant(
         "neo_hookean" => ModelSpec::NeoHookean,
         other => bail!("no material model `{other}`"),
     };
-    contact(&mut v)?.dhat = dhat;
-    contact(&mut v)?.friction = var.mu;
+    let c = contact(&mut v)?;
+    c.dhat = dhat;
+    c.friction = var.mu;
     // Plates d̂ beyond the extreme particles (the paper: "placed d̂ below / above the disk").
     let probe = ctx.probe(&v)?;
     let ys = probe

@@ -11,6 +11,7 @@ use femp::scene::{
 };
 
 use super::charts::{self, Chart, Series};
+use super::scenes::name_of;
 use super::{Check, Ctx, Outcome, Pictures, Tier};
 
 const V0: f64 = 40.0;
@@ -36,15 +37,10 @@ enum Solver {
 }
 
 fn scene(r: &Resolution, transfer: TransferSpec, duration: f64, solver: Solver) -> SceneSpec {
-    let name = match transfer {
-        TransferSpec::Apic => "apic",
-        TransferSpec::Flip => "flip",
-        TransferSpec::Pic => "pic",
-    };
     let mut time = TimeSpec::new(r.dt, duration);
     time.integrator = IntegratorSpec::Newmark;
     let mut spec = SceneSpec::new(2, time);
-    spec.name = Some(format!("colliding_rings_{name}"));
+    spec.name = Some(format!("colliding_rings_{}", name_of(&transfer)));
     spec.gravity = Some(vec![0.0, 0.0]);
     spec.solver.tolerance = r.tolerance;
     if let Solver::Fast = solver {
@@ -191,13 +187,11 @@ pub fn run(ctx: &Ctx) -> Result<Outcome> {
     let mut energy_series = Vec::new();
     let mut momentum_series = Vec::new();
     let mut apic = None;
-    for (k, (transfer, tag, paper_loss)) in [
-        (TransferSpec::Apic, "apic", 8.57),
-        (TransferSpec::Flip, "flip", 9.67),
-    ]
-    .into_iter()
-    .enumerate()
+    for (k, (transfer, paper_loss)) in [(TransferSpec::Apic, 8.57), (TransferSpec::Flip, 9.67)]
+        .into_iter()
+        .enumerate()
     {
+        let tag = name_of(&transfer);
         let r = ctx.run_scene(
             &format!("rings_{tag}"),
             &scene(&res, transfer, duration, Solver::Paper),

@@ -9,6 +9,15 @@ use femp::scene::{
     PenaltySpec, PrescribedSpec, SceneSpec, ShapeSpec, VertexSelector,
 };
 
+/// The name a scene file gives a setting (`TransferSpec::Apic` → `apic`), for run labels: one
+/// spelling, the format's.
+pub fn name_of(setting: &impl serde::Serialize) -> String {
+    match serde_json::to_value(setting) {
+        Ok(serde_json::Value::String(s)) => s,
+        other => format!("{other:?}"),
+    }
+}
+
 /// An MPM body filling `shape` with `ppc` particles per cell.
 pub fn mpm(name: &str, shape: ShapeSpec, ppc: usize, material: MaterialSpec) -> MpmBody {
     MpmBody {
