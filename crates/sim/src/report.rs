@@ -14,6 +14,9 @@ pub struct StepReport {
     pub augury_iterations: usize,
     /// Whether the friction iteration converged (always true without friction).
     pub friction_converged: bool,
+    /// The step's first solve failed with this error and the step was solved again with the
+    /// other Hessian strategy (`solver.retry_other_projection`).
+    pub retried: Option<String>,
     /// Active contact terms at the end of the step.
     pub contact_terms: usize,
     /// Smallest particle/vertex–boundary distance among active terms (∞ if none).

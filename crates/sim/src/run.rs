@@ -195,6 +195,13 @@ pub fn run_with<const D: usize>(
         note(format_args!("[{name}] warning: {w}"));
         summary.warnings.push(w);
     }
+    if summary.retried_steps > 0 {
+        summary.warnings.push(format!(
+            "{} steps failed their first solve and were solved again with the other Hessian \
+             strategy (solver.retry_other_projection)",
+            summary.retried_steps
+        ));
+    }
     if summary.friction_unconverged_steps > 0 {
         summary.warnings.push(format!(
             "the friction iteration hit solver.max_friction_iterations in {} steps",
@@ -289,6 +296,17 @@ fn drive<const D: usize>(
                 return Err(e);
             }
         };
+        if let Some(first) = &report.retried {
+            let line = format!(
+                "{first}; solved again with the other Hessian strategy \
+                 (solver.retry_other_projection)"
+            );
+            if let Some(b) = &bar {
+                b.println(format!("[{name}] {line}"));
+            } else if opts.progress {
+                note(format_args!("[{name}] {line}"));
+            }
+        }
         let clock = Instant::now();
         let mut m = world.measure();
         summary.timing.measure_s += clock.elapsed().as_secs_f64();
@@ -382,6 +400,7 @@ fn record(m: &mut Metrics, summary: &mut Summary, report: &StepReport) {
     summary.pcg_iterations += s.pcg_iterations;
     summary.pcg_fallbacks += s.pcg_fallbacks;
     summary.friction_unconverged_steps += usize::from(!report.friction_converged);
+    summary.retried_steps += usize::from(report.retried.is_some());
     summary.max_penetrations = summary.max_penetrations.max(m.penetrations);
     summary.penetrating_steps += usize::from(m.penetrations > 0);
     let tm = &mut summary.timing;

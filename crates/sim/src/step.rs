@@ -84,11 +84,13 @@ impl<const D: usize> World<D> {
             fixed,
             target,
             penalties,
-            x_hat,
+            mut x_hat,
             transfers_s,
         } = self.setup(integrator)?;
         let clock_setup = clock.elapsed().as_secs_f64() - transfers_s;
         let clock = std::time::Instant::now();
+        let contact_stabilized =
+            matches!(&self.method, MethodState::Bfemp(b) if b.contact_stabilized);
         // 3. The friction loop around the minimisation.
         let params = NewtonParams {
             tolerance: self.scene.spec.solver.tolerance,
@@ -125,6 +127,59 @@ impl<const D: usize> World<D> {
             transfers_s,
             ..Default::default()
         };
+        if contact_stabilized && !self.pairs.is_empty() {
+            // Contact-stabilised Newmark, the predictor step: x_p = argmin ½‖x − (xⁿ + Δt vⁿ)‖²_M
+            // + w B(x) (prescribed DOFs at their targets), and x̂ = x_p + Δt²/4 aⁿ.
+            let mut raw = vec![0.0; n_dofs];
+            Integrator::BackwardEuler.predictor(dt, &x0, &v0, &a0, &mut raw);
+            let mut xp = x0.clone();
+            let mut proj = StepObjective::new(
+                self.mpm.as_ref(),
+                &self.fem,
+                &self.pairs,
+                n_grid,
+                fem_offset.clone(),
+                n_dofs,
+                &mass,
+                &raw,
+                &x0,
+                w,
+                SVector::zeros(),
+                &[],
+            )
+            .contact_only();
+            // Where the predictor is reached along a feasible path and no barrier term is active
+            // there, it is the projection's minimiser (the objective is 0 there and nowhere
+            // negative): Newmark's predictor stays as it is, bit for bit.
+            let at_raw = start_at_predictor(&mut proj, &x0, &fixed, &target, &raw, &mut xp);
+            if !at_raw || proj.contact_summary(&xp).0 > 0 {
+                let MethodState::Bfemp(bfemp) = &mut self.method else {
+                    unreachable!("step_bfemp runs BFEMP worlds only");
+                };
+                let stats = bfemp
+                    .projection
+                    .minimize_to(&mut proj, &mut xp, &fixed, &target, &params)
+                    .map_err(|e| match e {
+                        femp_solver::SolveError::Interrupted { .. } => SimError::Interrupted {
+                            step: self.step,
+                            time: self.time,
+                        },
+                        e => SimError::StepFailed {
+                            step: self.step,
+                            time: self.time,
+                            message: format!("{e} (contact-stabilised predictor)"),
+                        },
+                    })?;
+                report.newton_iterations += stats.iterations;
+                report.stats += &stats;
+                for d in 0..n_dofs {
+                    if !fixed[d] {
+                        x_hat[d] += xp[d] - raw[d];
+                    }
+                }
+            }
+            report.objective.add(&proj.timing);
+        }
         let mut x = x0.clone();
         // Start the fixed DOFs where they are; Newton moves them to their targets.
         let mpm_ref = self.mpm.as_ref();
@@ -142,83 +197,88 @@ impl<const D: usize> World<D> {
             self.gravity,
             &penalties,
         );
-        // Initial guess: the integrator's predictor (targets for prescribed DOFs) when the
-        // straight path from xⁿ to it is feasible (no crossing, no inversion); xⁿ otherwise.
-        {
-            let mut dir = vec![0.0; n_dofs];
-            for d in 0..n_dofs {
-                dir[d] = if fixed[d] { target[d] } else { x_hat[d] } - x0[d];
-            }
-            let bound = femp_solver::Objective::max_step(&mut obj, &x0, &dir);
-            if bound.limit.is_none() && bound.alpha >= 1.0 {
-                for d in 0..n_dofs {
-                    x[d] = if fixed[d] { target[d] } else { x0[d] + dir[d] };
-                }
-                if !femp_solver::Objective::energy(&mut obj, &x).is_finite() {
-                    x.copy_from_slice(&x0);
-                }
-            }
-        }
+        let _ = start_at_predictor(&mut obj, &x0, &fixed, &target, &x_hat, &mut x);
         report.setup_s = clock_setup + clock.elapsed().as_secs_f64();
-        if any_friction {
-            // Algorithm 1 lags the friction operator at the start of the step.
-            obj.lag_friction(&x0);
-        }
         let max_fric = if any_friction {
             self.scene.spec.solver.max_friction_iterations
         } else {
             1
         };
-        let mut prev = x.clone();
-        obj.prefer_exact = params.hessian == HessianStrategy::ExactWhenDefinite;
-        for j in 0..max_fric {
-            report.friction_iterations = j + 1;
-            let MethodState::Bfemp(bfemp) = &mut self.method else {
-                unreachable!("step_bfemp runs BFEMP worlds only");
-            };
-            let stats = bfemp
-                .newton
-                .minimize_to(&mut obj, &mut x, &fixed, &target, &params)
-                .map_err(|e| match e {
-                    femp_solver::SolveError::Interrupted { .. } => SimError::Interrupted {
-                        step: self.step,
-                        time: self.time,
-                    },
-                    e => SimError::StepFailed {
-                        step: self.step,
-                        time: self.time,
+        let (step, time) = (self.step, self.time);
+        let failed = |(e, j): (femp_solver::SolveError, usize)| match e {
+            femp_solver::SolveError::Interrupted { .. } => SimError::Interrupted { step, time },
+            e => SimError::StepFailed {
+                step,
+                time,
+                message: format!(
+                    "{e}{}",
+                    if any_friction {
+                        format!(" (friction iteration {})", j + 1)
+                    } else {
+                        String::new()
+                    }
+                ),
+            },
+        };
+        let MethodState::Bfemp(bfemp) = &mut self.method else {
+            unreachable!("step_bfemp runs BFEMP worlds only");
+        };
+        let start = x.clone();
+        let mut solve = |obj: &mut StepObjective<'_, D>,
+                         x: &mut Vec<f64>,
+                         params: &NewtonParams,
+                         report: &mut StepReport| {
+            friction_loop(
+                &mut bfemp.newton,
+                obj,
+                x,
+                &x0,
+                (&fixed, &target),
+                params,
+                (any_friction, max_fric),
+                report,
+            )
+        };
+        match solve(&mut obj, &mut x, &params, &mut report) {
+            Ok(()) => {}
+            Err(first)
+                if self.scene.spec.solver.retry_other_projection
+                    && !matches!(first.0, femp_solver::SolveError::Interrupted { .. }) =>
+            {
+                // Solve the step again from its start with the other Hessian strategy
+                // (`solver.retry_other_projection`): where one stalls the other often does not.
+                let first = failed(first);
+                let other = match params.hessian {
+                    HessianStrategy::Projected => HessianStrategy::ExactWhenDefinite,
+                    _ => HessianStrategy::Projected,
+                };
+                let retry = NewtonParams {
+                    hessian: other,
+                    ..params
+                };
+                x.copy_from_slice(&start);
+                report.friction_converged = true;
+                report.retried = Some(first.to_string());
+                solve(&mut obj, &mut x, &retry, &mut report).map_err(|e| match failed(e) {
+                    SimError::StepFailed {
+                        step,
+                        time,
+                        message,
+                    } => SimError::StepFailed {
+                        step,
+                        time,
                         message: format!(
-                            "{e}{}",
-                            if any_friction {
-                                format!(" (friction iteration {})", j + 1)
-                            } else {
-                                String::new()
+                            "{message}, retried with {} after: {first}",
+                            match other {
+                                HessianStrategy::Projected => "projected Newton",
+                                _ => "the exact Hessian when definite",
                             }
                         ),
                     },
+                    e => e,
                 })?;
-            report.newton_iterations += stats.iterations;
-            report.stats += &stats;
-            if !any_friction {
-                break;
             }
-            let change = x
-                .iter()
-                .zip(&prev)
-                .map(|(a, b)| (a - b).abs())
-                .fold(0.0, f64::max)
-                / dt;
-            if j > 0 && change < params.tolerance {
-                break;
-            }
-            if j + 1 == max_fric {
-                // The last solve's friction operator stays (the forces reported with the step
-                // are those of the state it solved for).
-                report.friction_converged = false;
-                break;
-            }
-            prev.copy_from_slice(&x);
-            obj.lag_friction(&x);
+            Err(e) => return Err(failed(e)),
         }
         let (nterms, dmin) = obj.contact_summary(&x);
         let pad = |v: &SVector<f64, D>| std::array::from_fn(|a| if a < D { v[a] } else { 0.0 });
@@ -235,7 +295,21 @@ impl<const D: usize> World<D> {
             .collect();
         report.contact_terms = nterms;
         report.min_distance = dmin;
-        report.objective = obj.timing;
+        // Contact-stabilised Newmark carries the acceleration without contact forces:
+        // a = (x − x̂)/w + M⁻¹∇(B + D)(x) (the step's minimality: M(x − x̂) = −w∇(Ψ + B + D)).
+        let mut contact_acc = Vec::new();
+        if contact_stabilized && nterms > 0 {
+            contact_acc = vec![0.0; n_dofs];
+            obj.contact_gradient(&x, &mut contact_acc);
+            for d in 0..n_dofs {
+                contact_acc[d] = if fixed[d] || mass[d] <= 0.0 {
+                    0.0
+                } else {
+                    contact_acc[d] / (w * mass[d])
+                };
+            }
+        }
+        report.objective.add(&obj.timing);
         drop(obj);
         if let Some(m) = self.mpm.as_mut() {
             m.contact_force = on_particles;
@@ -254,6 +328,9 @@ impl<const D: usize> World<D> {
         let mut v1 = v0.clone();
         let mut a1 = a0.clone();
         integrator.update(dt, &x, &x_hat, &mut v1, &mut a1);
+        for (a, c) in a1.iter_mut().zip(&contact_acc) {
+            *a += c;
+        }
 
         // 5. Grid-to-particle and advection.
         let clock = std::time::Instant::now();
@@ -459,6 +536,87 @@ impl<const D: usize> World<D> {
             transfers_s,
         })
     }
+}
+
+/// The lagged-friction loop around the minimisation (Algorithm 1) from `x`, friction lagged
+/// at the step's start `x0` first; the failing solve's error and friction iteration if one
+/// fails.
+#[allow(clippy::too_many_arguments)]
+fn friction_loop<const D: usize>(
+    newton: &mut femp_solver::Newton,
+    obj: &mut StepObjective<'_, D>,
+    x: &mut [f64],
+    x0: &[f64],
+    (fixed, target): (&[bool], &[f64]),
+    params: &NewtonParams,
+    (any_friction, max_fric): (bool, usize),
+    report: &mut StepReport,
+) -> Result<(), (femp_solver::SolveError, usize)> {
+    if any_friction {
+        // Algorithm 1 lags the friction operator at the start of the step.
+        obj.lag_friction(x0);
+    }
+    obj.prefer_exact = params.hessian == HessianStrategy::ExactWhenDefinite;
+    let mut prev = x.to_vec();
+    for j in 0..max_fric {
+        report.friction_iterations = j + 1;
+        let stats = newton
+            .minimize_to(obj, x, fixed, target, params)
+            .map_err(|e| (e, j))?;
+        report.newton_iterations += stats.iterations;
+        report.stats += &stats;
+        if !any_friction {
+            break;
+        }
+        let change = x
+            .iter()
+            .zip(&prev)
+            .map(|(a, b)| (a - b).abs())
+            .fold(0.0, f64::max)
+            / params.dt;
+        if j > 0 && change < params.tolerance {
+            break;
+        }
+        if j + 1 == max_fric {
+            // The last solve's friction operator stays (the forces reported with the step
+            // are those of the state it solved for).
+            report.friction_converged = false;
+            break;
+        }
+        prev.copy_from_slice(x);
+        obj.lag_friction(x);
+    }
+    Ok(())
+}
+
+/// Start `x` at the predictor `x_hat` (targets for prescribed DOFs) when the straight path
+/// from `x0` to it is feasible (no crossing, no inversion) and its energy finite (`true`); at
+/// `x0` otherwise (`false`).
+fn start_at_predictor<const D: usize>(
+    obj: &mut StepObjective<'_, D>,
+    x0: &[f64],
+    fixed: &[bool],
+    target: &[f64],
+    x_hat: &[f64],
+    x: &mut [f64],
+) -> bool {
+    x.copy_from_slice(x0);
+    let n = x0.len();
+    let mut dir = vec![0.0; n];
+    for d in 0..n {
+        dir[d] = if fixed[d] { target[d] } else { x_hat[d] } - x0[d];
+    }
+    let bound = femp_solver::Objective::max_step(obj, x0, &dir);
+    if bound.limit.is_none() && bound.alpha >= 1.0 {
+        for d in 0..n {
+            x[d] = if fixed[d] { target[d] } else { x0[d] + dir[d] };
+        }
+        if femp_solver::Objective::energy(obj, x).is_finite() {
+            return true;
+        }
+        x.copy_from_slice(x0);
+    }
+    false
 }
 
 #[cfg(test)]

@@ -66,8 +66,14 @@ pub enum MethodState<const D: usize> {
 pub struct Bfemp {
     /// The time integrator of the incremental potential.
     pub integrator: Integrator,
+    /// Contact-stabilised Newmark: the predictor is projected onto what the barrier admits
+    /// before the step, and the acceleration carried to the next step excludes contact.
+    pub contact_stabilized: bool,
     /// The Newton solver (kept across steps: symbolic factorisations and buffers are reused).
     pub newton: Newton,
+    /// The predictor projection's Newton solver (contact-stabilised Newmark; its own Hessian
+    /// pattern, so kept apart from the step's).
+    pub projection: Newton,
 }
 
 fn make_material(m: &MaterialSpec) -> Result<Material, SimError> {
@@ -154,9 +160,12 @@ impl<const D: usize> World<D> {
             .gravity
             .as_deref()
             .map_or_else(SVector::zeros, SVector::from_column_slice);
+        let contact_stabilized = spec.time.integrator == IntegratorSpec::ContactStabilizedNewmark;
         let integrator = match spec.time.integrator {
             IntegratorSpec::BackwardEuler => Integrator::BackwardEuler,
-            IntegratorSpec::Newmark => Integrator::Newmark,
+            IntegratorSpec::Newmark | IntegratorSpec::ContactStabilizedNewmark => {
+                Integrator::Newmark
+            }
         };
         let mut mpm: Option<Mpm<D>> = None;
         let mut fem: Vec<FemBody<D>> = Vec::new();
@@ -500,7 +509,9 @@ impl<const D: usize> World<D> {
             boundaries,
             method: MethodState::Bfemp(Box::new(Bfemp {
                 integrator,
+                contact_stabilized,
                 newton: Newton::new(),
+                projection: Newton::new(),
             })),
             interrupt: None,
         };
@@ -521,6 +532,7 @@ impl<const D: usize> World<D> {
     pub fn set_interrupt(&mut self, flag: Option<std::sync::Arc<std::sync::atomic::AtomicBool>>) {
         if let MethodState::Bfemp(b) = &mut self.method {
             b.newton.set_interrupt(flag.clone());
+            b.projection.set_interrupt(flag.clone());
         }
         self.interrupt = flag;
     }

@@ -103,6 +103,9 @@ pub struct StepObjective<'a, const D: usize> {
     pub(crate) timing: ObjectiveTiming,
     /// Number of active contact terms and smallest contact distance at the last gradient.
     pub(crate) last_contacts: (usize, f64),
+    /// Whether the elastic terms (and their det F > 0 bounds) are part of the objective; not
+    /// in the predictor projection of contact-stabilised Newmark ([`Self::contact_only`]).
+    elastic: bool,
 }
 
 impl<'a, const D: usize> StepObjective<'a, D> {
@@ -145,7 +148,27 @@ impl<'a, const D: usize> StepObjective<'a, D> {
             prefer_exact: false,
             timing: ObjectiveTiming::default(),
             last_contacts: (0, f64::INFINITY),
+            elastic: true,
         }
+    }
+
+    /// The objective without its elastic terms: `½‖x − x̂‖²_M + w B(x)` (with the gravity and
+    /// penalties it was built with), the mass-norm projection of `x̂` onto the configurations
+    /// the barrier admits (contact-stabilised Newmark's predictor step). Its feasible step is
+    /// CCD's alone: nothing deforms elastically in it, so nothing can invert.
+    pub(crate) fn contact_only(mut self) -> Self {
+        self.elastic = false;
+        self
+    }
+
+    /// Write the contact terms' gradient `w ∇(B + D)` at `x` into `g` (all DOFs).
+    pub(crate) fn contact_gradient(&mut self, x: &[f64], g: &mut [f64]) {
+        self.unpack(x);
+        g.iter_mut().for_each(|v| *v = 0.0);
+        let clock = Instant::now();
+        self.contact
+            .add_gradient(&self.cfg, &self.dofs, self.w, self.prefer_exact, g);
+        self.timing.contact_s += clock.elapsed().as_secs_f64();
     }
 
     /// Move the configuration to `x` (once per `x`).
@@ -194,15 +217,22 @@ impl<'a, const D: usize> StepObjective<'a, D> {
         // triplets (into `h`) and the contact derivatives.
         let (particles, elements, contact) =
             (&mut self.particles, &mut self.elements, &mut self.contact);
+        let elastic = self.elastic;
         let (mpm_s, (fem_s, contact_s)) = rayon::join(
             || {
                 let clock = Instant::now();
-                particles.hessian(cfg, dofs, w, exact);
+                if elastic {
+                    particles.hessian(cfg, dofs, w, exact);
+                } else {
+                    particles.clear_hessian(dofs);
+                }
                 clock.elapsed().as_secs_f64()
             },
             || {
                 let mut clock = Instant::now();
-                elements.hessian(cfg, dofs, w, exact, h);
+                if elastic {
+                    elements.hessian(cfg, dofs, w, exact, h);
+                }
                 let fem_s = lap(&mut clock);
                 contact.prepare_hessian(cfg, dofs, w, exact);
                 (fem_s, lap(&mut clock))
@@ -231,6 +261,9 @@ impl<'a, const D: usize> StepObjective<'a, D> {
             &self.elements,
             &mut self.contact,
         );
+        if !self.elastic {
+            return e + contact.add_energy(cfg, w, 0.0);
+        }
         let (el, rest) = rayon::join(
             || particles.energy(cfg),
             || {
@@ -266,10 +299,12 @@ impl<const D: usize> Objective for StepObjective<'_, D> {
         let mut clock = Instant::now();
         let (w, dofs, cfg) = (self.w, &self.dofs, &self.cfg);
         self.inertia.set_gradient(x, w, g);
-        self.particles.add_gradient(cfg, dofs, w, g);
-        self.timing.mpm_s += lap(&mut clock);
-        self.elements.add_gradient(cfg, dofs, w, g);
-        self.timing.fem_s += lap(&mut clock);
+        if self.elastic {
+            self.particles.add_gradient(cfg, dofs, w, g);
+            self.timing.mpm_s += lap(&mut clock);
+            self.elements.add_gradient(cfg, dofs, w, g);
+            self.timing.fem_s += lap(&mut clock);
+        }
         self.last_contacts = self
             .contact
             .add_gradient(cfg, dofs, w, self.prefer_exact, g);
@@ -320,6 +355,11 @@ impl<const D: usize> Objective for StepObjective<'_, D> {
         );
         self.timing.inversion_s += setup_s + mpm_s + fem_s;
         self.timing.ccd_s += ccd_s;
+        let (mpm_alpha, fem_alpha) = if self.elastic {
+            (mpm_alpha, fem_alpha)
+        } else {
+            (f64::INFINITY, f64::INFINITY)
+        };
         let mut best = StepBound::UNLIMITED;
         for (alpha, limit) in [
             (mpm_alpha, StepLimit::DetF),

@@ -91,6 +91,19 @@ impl<'a, const D: usize> ParticleElasticity<'a, D> {
         }
     }
 
+    /// Clear the grid Hessian without adding the particles' blocks (objectives without
+    /// elasticity; contact terms between particles still scatter into it).
+    pub fn clear_hessian(&mut self, dofs: &Dofs) {
+        if let Some(m) = self.mpm {
+            let st = &m.stencils;
+            self.gh.reset(
+                dofs.n_grid,
+                st.stencil_axes(),
+                st.grid().kernel().nodes_per_axis(),
+            );
+        }
+    }
+
     /// Append the grid Hessian's triplets to `h`.
     pub fn emit(&mut self, h: &mut Triplets) {
         if self.mpm.is_some() {

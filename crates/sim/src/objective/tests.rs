@@ -396,3 +396,112 @@ fn hessian_from_the_gradients_contact_derivatives_equals_a_fresh_one() {
         "the friction operator must matter in this scene"
     );
 }
+
+/// The predictor projection of contact-stabilised Newmark (`contact_only`): inertia, gravity
+/// and the barrier, no elasticity — its energy is the full objective's minus the elastic
+/// energy (checked on a stretched, contact-free state), its gradient and exact Hessian match
+/// central differences with contact terms active, and `contact_gradient` is the barrier's
+/// share of the full gradient.
+fn check_contact_only<const D: usize>(json: &str, stretched: &str) {
+    // Contact-free and stretched: the elastic terms are what tells the two objectives apart.
+    let mut w = world::<D>(stretched);
+    let setup = w.setup(w.bfemp().unwrap().integrator).unwrap();
+    let n = setup.n_dofs;
+    let x: Vec<f64> = (0..n).map(|d| 1.05 * setup.x0[d]).collect();
+    let full = setup.objective(&w).energy(&x);
+    let mut only = setup.objective(&w).contact_only();
+    let e = only.energy(&x);
+    let mut g = vec![0.0; n];
+    only.gradient(&x, &mut g);
+    assert_eq!(
+        only.last_contacts.0, 0,
+        "the stretched scene must be contact-free"
+    );
+    // Inertia and gravity alone (no slip penalty in these scenes).
+    let (mut inertia, mut g_inertia) = (0.0, vec![0.0; n]);
+    for d in 0..n {
+        let (m, r, gr) = (setup.mass[d], x[d] - setup.x_hat[d], w.gravity[d % D]);
+        let wt = w.bfemp().unwrap().integrator.weight(w.dt);
+        inertia += 0.5 * m * r * r - wt * m * gr * x[d];
+        g_inertia[d] = m * r - wt * m * gr;
+    }
+    assert!(
+        (e - inertia).abs() <= 1e-12 * inertia.abs(),
+        "{e} vs {inertia}"
+    );
+    for d in 0..n {
+        assert!((g[d] - g_inertia[d]).abs() <= 1e-9 * (1.0 + g_inertia[d].abs()));
+    }
+    assert!(
+        full > e * (1.0 + 1e-6),
+        "no elastic energy told apart: {full} vs {e}"
+    );
+
+    // With contact terms: derivatives against finite differences.
+    let mut w = world::<D>(json);
+    let setup = w.setup(w.bfemp().unwrap().integrator).unwrap();
+    let n = setup.n_dofs;
+    let r = noise(n, 17);
+    let x: Vec<f64> = (0..n).map(|d| setup.x0[d] + 1e-4 * r[d]).collect();
+    let mut obj = setup.objective(&w).contact_only();
+    obj.prefer_exact = true;
+    let mut g = vec![0.0; n];
+    obj.gradient(&x, &mut g);
+    assert!(obj.last_contacts.0 > 0, "the scene must have contact terms");
+    let gmax = g.iter().fold(0.0f64, |a, v| a.max(v.abs()));
+    let h = 1e-7;
+    let mut xp = x.clone();
+    for d in 0..n {
+        xp[d] = x[d] + h;
+        let ep = obj.energy(&xp);
+        xp[d] = x[d] - h;
+        let em = obj.energy(&xp);
+        xp[d] = x[d];
+        let fd = (ep - em) / (2.0 * h);
+        assert!(
+            (fd - g[d]).abs() <= 1e-4 * (gmax * 1e-5 + g[d].abs().max(fd.abs())),
+            "dof {d}: analytic {} vs FD {fd}",
+            g[d]
+        );
+    }
+    let mut t = Triplets::default();
+    assert!(obj.exact_hessian(&x, &mut t));
+    assert_gradient_derivative(&mut obj, &x, &dense(&t, n), 1e-7);
+    // The barrier's share: contact-only gradient − inertia's = full gradient − the rest.
+    let mut gc = vec![0.0; n];
+    obj.contact_gradient(&x, &mut gc);
+    let wt = w.bfemp().unwrap().integrator.weight(w.dt);
+    let cmax = gc.iter().fold(0.0f64, |a, v| a.max(v.abs()));
+    assert!(cmax > 0.0);
+    for d in 0..n {
+        let inertia =
+            setup.mass[d] * (x[d] - setup.x_hat[d]) - wt * setup.mass[d] * w.gravity[d % D];
+        assert!(
+            (g[d] - inertia - gc[d]).abs() <= 1e-9 * (cmax + g[d].abs()),
+            "dof {d}: {} vs {}",
+            g[d] - inertia,
+            gc[d]
+        );
+    }
+}
+
+#[test]
+fn contact_only_objective_is_inertia_and_barrier_2d() {
+    // Frictionless (friction is not lagged in the projection) and without the slip wall.
+    let base = SCENE_2D.replace("\"friction\": 0.4", "\"friction\": 0");
+    let base = &base[..base.find(",\n  \"boundaries\"").unwrap()];
+    let json = format!("{base}\n}}");
+    let stretched = json
+        .replace("-0.02], \"max\": [0.2, 0.3]", "0.1], \"max\": [0.2, 0.3]")
+        .replace("0.503", "0.6");
+    check_contact_only::<2>(&json, &stretched);
+}
+
+#[test]
+fn contact_only_objective_is_inertia_and_barrier_3d() {
+    let json = SCENE_3D.replace("\"friction\": 0.4", "\"friction\": 0");
+    let stretched = json
+        .replace("0.001], \"max\"", "0.1], \"max\"")
+        .replace("0.06", "0.01");
+    check_contact_only::<3>(&json, &stretched);
+}

@@ -191,6 +191,11 @@ pub enum IntegratorSpec {
     BackwardEuler,
     /// Newmark (trapezoidal).
     Newmark,
+    /// Contact-stabilised Newmark (Deuflhard, Krause and Ertel 2008): Newmark whose predictor
+    /// is first moved, in the mass norm, to the nearest configuration the barrier admits
+    /// (inertia and barrier only), with contact forces implicit only (the stored acceleration
+    /// carries no contact force). Newmark's step wherever no contact term is active.
+    ContactStabilizedNewmark,
 }
 
 /// Solver settings.
@@ -218,6 +223,9 @@ pub struct SolverSpec {
     /// Reuse the last Newton iteration's Hessian after a full step whose increment
     /// ‖p‖∞/Δt was below this (m/s) while the contact set is unchanged (0: never).
     pub reuse_hessian_below: f64,
+    /// When a step's Newton solve fails (iteration limit, stalled line search), solve the step
+    /// again from its start with the other `projection`; the step fails only if both do.
+    pub retry_other_projection: bool,
 }
 
 /// The Newton direction's linear solver (`solver.linear`).
@@ -255,6 +263,7 @@ impl Default for SolverSpec {
             pcg_max_iterations: 200,
             pcg_rtol_max: None,
             reuse_hessian_below: 0.0,
+            retry_other_projection: true,
         }
     }
 }

@@ -7,7 +7,7 @@ use std::path::Path;
 use femp::run::{RunOptions, RunResult, run};
 use femp::scene;
 
-fn run_scene(json: &str) -> RunResult {
+pub(crate) fn run_scene(json: &str) -> RunResult {
     let s = scene::parse(json, "test.json", Path::new(".").to_path_buf(), "test").unwrap();
     let dir = tempfile::tempdir().unwrap();
     let r = run(
@@ -523,4 +523,73 @@ fn three_d_fem_fem_contact_is_flagged_as_vertex_facet_only() {
         .unwrap()
         .warnings();
     assert!(w.is_empty(), "{w:?}");
+}
+
+/// The quick validation tier's §6.2 scene (an MPM box pressed down onto a prescribed sine-wave
+/// FEM strip, dragged sideways) with `projection: "when_indefinite"`: at step 193 its Newton
+/// solve stalls in the line search. With `solver.retry_other_projection` (the default) the step
+/// is solved again with projected Newton and the run goes on; without it the run stops there.
+fn sine_strip(retry: bool) -> String {
+    format!(
+        r#"{{
+  "dimension": 2, "gravity": [0.0, -9.81],
+  "time": {{ "dt": 0.004, "duration": 0.78 }},
+  "solver": {{ "tolerance": 1e-4, "max_newton_iterations": 300, "projection": "when_indefinite",
+              "retry_other_projection": {retry} }},
+  "mpm": {{ "grid_spacing": 0.05 }},
+  "bodies": [
+    {{ "kind": "mpm", "name": "box", "shape": {{ "box": {{ "min": [0.0, 0.0], "max": [1.0, 1.0] }} }},
+      "particles_per_cell": 4, "material": {{ "E": 1e6, "nu": 0.2, "rho": 1000 }} }},
+    {{ "kind": "fem", "name": "sine",
+      "mesh": {{ "cosine_strip": {{ "x0": -0.6, "x1": 1.6, "offset": 1.2, "amplitude": 0.025,
+                                   "wavelength": 0.1, "thickness": 0.1, "cells": [440, 2] }} }},
+      "material": {{ "E": 1e8, "nu": 0.3, "rho": 1000 }},
+      "prescribed": [ {{ "vertices": "all", "motion": [
+        {{ "until": 0.6, "velocity": [0.0, -1.0] }},
+        {{ "until": 1.1, "velocity": [-1.0, 0.0] }},
+        {{ "until": 1.8, "velocity": [0.0, 1.0] }} ] }} ] }}
+  ],
+  "contact": {{ "dhat": 0.001, "kappa": 1e4 }},
+  "boundaries": [ {{ "shape": {{ "half_plane": {{ "point": [0.0, 0.0], "normal": [0.0, 1.0] }} }},
+                    "condition": "no_slip" }} ]
+}}"#
+    )
+}
+
+#[test]
+fn a_step_whose_solve_fails_is_solved_again_with_the_other_projection() {
+    let r = run_scene(&sine_strip(true));
+    assert_eq!(r.summary.steps, 195);
+    assert!(r.summary.retried_steps >= 1, "{:?}", r.summary);
+    assert!(
+        r.summary
+            .warnings
+            .iter()
+            .any(|w| w.contains("retry_other_projection")),
+        "{:?}",
+        r.summary.warnings
+    );
+    // Without the retry the same step stops the run, naming the failure.
+    let s = scene::parse(
+        &sine_strip(false),
+        "test.json",
+        Path::new(".").to_path_buf(),
+        "test",
+    )
+    .unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    let err = run(
+        s,
+        dir.path(),
+        &RunOptions {
+            no_frames: true,
+            ..Default::default()
+        },
+    )
+    .unwrap_err()
+    .to_string();
+    assert!(
+        err.contains("step 193") && err.contains("line search"),
+        "{err}"
+    );
 }

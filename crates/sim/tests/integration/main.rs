@@ -10,6 +10,7 @@ mod fixtures;
 mod fuzz;
 mod pictures;
 mod sampling;
+mod stabilized;
 mod trust;
 
 /// Every allocation of these tests counts against a cap: one that would take the live total
