@@ -196,10 +196,13 @@ pub fn run_with<const D: usize>(
         summary.warnings.push(w);
     }
     if summary.retried_steps > 0 {
+        let n = summary.retried_steps;
         summary.warnings.push(format!(
-            "{} steps failed their first solve and were solved again with the other Hessian \
-             strategy (solver.retry_other_projection)",
-            summary.retried_steps
+            "{n} {} failed {} first solve and {} solved again with the other Hessian strategy \
+             (solver.retry_other_projection)",
+            if n == 1 { "step" } else { "steps" },
+            if n == 1 { "its" } else { "their" },
+            if n == 1 { "was" } else { "were" },
         ));
     }
     if summary.friction_unconverged_steps > 0 {
