@@ -143,6 +143,14 @@ pub fn run(ctx: &Ctx) -> Result<Outcome> {
                     r.metrics.iter().map(|m| m.penetrations).max().unwrap_or(0),
                     0,
                 ));
+                if r.summary.retried_steps > 0 {
+                    out.notes.push(format!(
+                        "{tag}: {} step(s) failed their first Newton solve (projected Newton) and \
+                         were solved again with the exact Hessian when definite \
+                         (`solver.retry_other_projection`; docs/bfemp.md, Known limits).",
+                        r.summary.retried_steps
+                    ));
+                }
             }
         } else {
             out.checks.push(Check {
