@@ -253,19 +253,7 @@ pub fn run(ctx: &Ctx) -> Result<Outcome> {
             apic = Some((figures(&r), r.summary.wall_s, r.summary.newton_iterations));
         }
         let up = tag.to_uppercase();
-        // Newton stops when velocities are converged to ε_d: the momentum residual is at most
-        // M ε_d, i.e. ε_d / V0 relative to Σ m|v|.
-        out.checks.push(Check::at_most(
-            &format!("{up}: max |Δ momentum| / Σm|v₀|"),
-            f.momentum_drift,
-            tol,
-            "",
-        ));
-        out.checks.push(Check::count(
-            &format!("{up}: penetrations, max over steps"),
-            f.penetrations,
-            0,
-        ));
+        conservation_rows(&mut out, &up, &f, tol);
         out.checks.push(Check::info(
             &format!("{up}: energy lost in the collision"),
             format!("{:.2} %", 100.0 * f.energy_loss),
@@ -392,17 +380,7 @@ pub fn run(ctx: &Ctx) -> Result<Outcome> {
         None,
     )?;
     let f = figures(&r);
-    out.checks.push(Check::at_most(
-        "APIC, fast solver: max |Δ momentum| / Σm|v₀|",
-        f.momentum_drift,
-        tol,
-        "",
-    ));
-    out.checks.push(Check::count(
-        "APIC, fast solver: penetrations, max over steps",
-        f.penetrations,
-        0,
-    ));
+    conservation_rows(&mut out, "APIC, fast solver", &f, tol);
     // Not a check: the energy after separation moves by about a percentage point under
     // perturbations far below the Newton tolerance (two Cholesky builds that differ in
     // round-off only: −0.89 % and −1.35 % at the paper's resolution; docs/performance.md).
@@ -467,9 +445,10 @@ pub fn run(ctx: &Ctx) -> Result<Outcome> {
     Ok(out)
 }
 
-/// The rows every contact-stabilised run must pass: momentum to the Newton tolerance, no
-/// penetration, and the total energy never above E₀ (to round-off).
-fn stabilized_rows(out: &mut Outcome, who: &str, f: &Figures, tol: f64) {
+/// The rows every run must pass: linear momentum to the Newton tolerance (Newton stops when
+/// velocities are converged to ε_d: the momentum residual is at most M ε_d, i.e. `tol` =
+/// ε_d / V0 relative to Σ m|v|) and no penetration.
+fn conservation_rows(out: &mut Outcome, who: &str, f: &Figures, tol: f64) {
     out.checks.push(Check::at_most(
         &format!("{who}: max |Δ momentum| / Σm|v₀|"),
         f.momentum_drift,
@@ -481,6 +460,12 @@ fn stabilized_rows(out: &mut Outcome, who: &str, f: &Figures, tol: f64) {
         f.penetrations,
         0,
     ));
+}
+
+/// The rows every contact-stabilised run must pass: [`conservation_rows`], and the total
+/// energy never above E₀ (to round-off).
+fn stabilized_rows(out: &mut Outcome, who: &str, f: &Figures, tol: f64) {
+    conservation_rows(out, who, f, tol);
     out.checks.push(Check::holds(
         &format!("{who}: largest energy gain over E₀"),
         format!("{:.2e} %", 100.0 * f.max_gain),
