@@ -247,6 +247,11 @@ impl<const D: usize> World<D> {
             {
                 // Solve the step again from its start with the other Hessian strategy
                 // (`solver.retry_other_projection`): where one stalls the other often does not.
+                // The failed attempt's work counts in the step's statistics.
+                if let Some(stats) = first.0.stats() {
+                    report.newton_iterations += stats.iterations;
+                    report.stats += stats;
+                }
                 let first = failed(first);
                 let other = match params.hessian {
                     HessianStrategy::Projected => HessianStrategy::ExactWhenDefinite,

@@ -561,6 +561,9 @@ fn a_step_whose_solve_fails_is_solved_again_with_the_other_projection() {
     let r = run_scene(&sine_strip(true));
     assert_eq!(r.summary.steps, 195);
     assert!(r.summary.retried_steps >= 1, "{:?}", r.summary);
+    // The failed attempt's 32 iterations count in the retried step's row, with the retry's own.
+    let row = r.metrics.iter().find(|m| m.step == 194).unwrap();
+    assert!(row.newton_iterations > 32, "{}", row.newton_iterations);
     assert!(
         r.summary
             .warnings
