@@ -39,7 +39,10 @@ pub struct Mpm<const D: usize> {
     pub b: Vec<SMatrix<f64, D, D>>,
     /// Deformation gradients.
     pub f: Vec<SMatrix<f64, D, D>>,
-    /// Accelerations (Newmark).
+    /// The acceleration each particle carries to the next Newmark step: the contact, friction
+    /// and slip-penalty part of its last one (contact-stabilised Newmark: the penalties' only;
+    /// 0 with backward Euler). The elastic and gravity part is evaluated on the grid at each
+    /// step's start.
     pub a: Vec<SVector<f64, D>>,
     /// Masses.
     pub mass: Vec<f64>,
@@ -108,7 +111,9 @@ pub struct FemBody<const D: usize> {
     pub x: Vec<SVector<f64, D>>,
     /// Velocities.
     pub v: Vec<SVector<f64, D>>,
-    /// Accelerations (Newmark).
+    /// The acceleration each vertex carries to the next Newmark step: the contact and friction
+    /// part of its last one (0 with contact-stabilised Newmark and backward Euler). The
+    /// elastic and gravity part is evaluated at each step's start.
     pub a: Vec<SVector<f64, D>>,
     /// Lumped masses.
     pub mass: Vec<f64>,

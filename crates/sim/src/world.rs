@@ -249,7 +249,7 @@ impl<const D: usize> World<D> {
                         state.v.push(rigid_velocity(&v0, &w, &x, &com));
                         state.b.push(l * dp);
                         state.f.push(SMatrix::identity());
-                        state.a.push(gravity);
+                        state.a.push(SVector::zeros());
                         state.mass.push(samples.volume[k] * material.rho);
                         state.volume.push(samples.volume[k]);
                         state.weight.push(particle_weight::<D>(samples.volume[k]));
@@ -359,7 +359,7 @@ impl<const D: usize> World<D> {
                         name: name.clone(),
                         elastic,
                         material: mat,
-                        a: vec![gravity; x.len()],
+                        a: vec![SVector::zeros(); x.len()],
                         v,
                         initial: x.clone(),
                         x,

@@ -26,7 +26,7 @@ mod config;
 mod contact;
 mod elements;
 mod inertia;
-mod particles;
+pub(crate) mod particles;
 
 use config::{Configuration, Dofs};
 use contact::Contact;

@@ -11,6 +11,38 @@ use rayon::prelude::*;
 use super::config::{Configuration, Dofs, block};
 use crate::bodies::Mpm;
 
+/// `w ∂/∂x_i Σ_q V_q Ψ(F_q)` for every grid node `i` of the current stencils (parallel) into
+/// `out`, with `fq` the particles' deformation gradients at the configuration.
+fn node_forces<const D: usize>(
+    m: &Mpm<D>,
+    fq: &[SMatrix<f64, D, D>],
+    w: f64,
+    n_grid: usize,
+    out: &mut Vec<SVector<f64, D>>,
+) {
+    let st = &m.stencils;
+    out.clear();
+    out.resize(n_grid, SVector::zeros());
+    st.par_scatter_rows(out, 1, |particles, rows| {
+        for &p in particles {
+            let p = p as usize;
+            let pk = m.bodies[m.body[p] as usize].material.first_piola(&fq[p]) * (w * m.volume[p]);
+            let ft = m.f[p].transpose();
+            st.particle(p).for_each(|i, _, grad| {
+                rows.row(i)[0] += pk * (ft * grad);
+            });
+        }
+    });
+}
+
+/// The elastic energy's gradient on the grid at the start of a step (every grid node at its
+/// rest position, so `F_q = F_qⁿ`) into `out`: MPM's internal forces `−out` there, from which
+/// Newmark's start-of-step acceleration is evaluated on this step's grid rather than carried
+/// through the particles.
+pub(crate) fn start_gradient<const D: usize>(m: &Mpm<D>, out: &mut Vec<SVector<f64, D>>) {
+    node_forces(m, &m.f, 1.0, m.stencils.num_nodes(), out);
+}
+
 /// The particles' elastic energy and its derivatives, with the buffers they reuse.
 pub(super) struct ParticleElasticity<'a, const D: usize> {
     pub mpm: Option<&'a Mpm<D>>,
@@ -62,21 +94,7 @@ impl<'a, const D: usize> ParticleElasticity<'a, D> {
         let Some(m) = self.mpm else {
             return;
         };
-        let st = &m.stencils;
-        let fq = &cfg.fq;
-        self.node_force.clear();
-        self.node_force.resize(dofs.n_grid, SVector::zeros());
-        st.par_scatter_rows(&mut self.node_force, 1, |particles, rows| {
-            for &p in particles {
-                let p = p as usize;
-                let pk =
-                    m.bodies[m.body[p] as usize].material.first_piola(&fq[p]) * (w * m.volume[p]);
-                let ft = m.f[p].transpose();
-                st.particle(p).for_each(|i, _, grad| {
-                    rows.row(i)[0] += pk * (ft * grad);
-                });
-            }
-        });
+        node_forces(m, &cfg.fq, w, dofs.n_grid, &mut self.node_force);
         for (i, f) in self.node_force.iter().enumerate() {
             for a in 0..D {
                 g[i * D + a] += f[a];
