@@ -318,11 +318,10 @@ impl<const D: usize> World<D> {
         }
         if needs_acc {
             for p in &penalties {
-                let d = p.node * D;
-                let r = p.n.dot(&SVector::from_column_slice(&x[d..d + D])) - p.target;
+                let (d, gp) = (p.node * D, p.gradient(&x));
                 for a in 0..D {
                     if !fixed[d + a] && mass[d + a] > 0.0 {
-                        carried[d + a] -= p.k * r * p.n[a] / (w * mass[d + a]);
+                        carried[d + a] -= gp[a] / (w * mass[d + a]);
                     }
                 }
             }

@@ -18,6 +18,14 @@ pub struct Penalty<const D: usize> {
     pub k: f64,
 }
 
+impl<const D: usize> Penalty<D> {
+    /// The penalty's gradient `k (n·x_i − c) n` on its node, at the DOF vector `x`.
+    pub fn gradient(&self, x: &[f64]) -> SVector<f64, D> {
+        let r = self.n.dot(&block(x, self.node)) - self.target;
+        SVector::from_fn(|a, _| self.k * r * self.n[a])
+    }
+}
+
 /// The quadratic terms of the step: inertia about the predictor `x̂`, gravity, penalties.
 pub(super) struct Inertia<'a, const D: usize> {
     /// Mass per DOF (the diagonal of `M`).
@@ -48,9 +56,9 @@ impl<const D: usize> Inertia<'_, D> {
             g[d] = self.mass[d] * (x[d] - self.x_hat[d]) - w * self.mass[d] * self.gravity[d % D];
         }
         for p in self.penalties {
-            let r = p.n.dot(&block(x, p.node)) - p.target;
+            let gp = p.gradient(x);
             for a in 0..D {
-                g[p.node * D + a] += p.k * r * p.n[a];
+                g[p.node * D + a] += gp[a];
             }
         }
     }
