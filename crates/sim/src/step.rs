@@ -497,13 +497,15 @@ impl<const D: usize> World<D> {
                 }
             }
         }
+        // One gradient and one per-element force buffer serve every body.
         let mut gradient = Vec::new();
+        let mut element_forces = Vec::new();
         for (b, body) in self.fem.iter().enumerate() {
             gradient.clear();
             gradient.resize(body.x.len(), SVector::<f64, D>::zeros());
             if integrator.needs_acceleration() && !body.fully_prescribed {
                 body.elastic
-                    .add_gradient_with(&body.x, 1.0, &mut Vec::new(), &mut gradient)
+                    .add_gradient_with(&body.x, 1.0, &mut element_forces, &mut gradient)
                     .map_err(|e| SimError::StepFailed {
                         step: self.step,
                         time: self.time,
