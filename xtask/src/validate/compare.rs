@@ -498,15 +498,34 @@ fn impact(ctx: &Ctx, out: &mut Outcome) -> Result<()> {
         0,
     ));
     // The augury paper's claim (§3.1–3.2): APIC lets bodies separate, PIC makes them stick.
-    let apic = points.iter().filter(|p| p.method == "augury APIC N = 1");
-    let worse: Vec<String> = apic
-        .filter(|a| {
-            points.iter().any(|p| {
-                p.method == "augury PIC N = 1" && p.h == a.h && p.dt == a.dt && p.error <= a.error
-            })
+    // Each run where it does not hold, with both errors.
+    let worse: Vec<(String, f64, f64)> = points
+        .iter()
+        .filter(|a| a.method == "augury APIC N = 1")
+        .filter_map(|a| {
+            points
+                .iter()
+                .find(|p| p.method == "augury PIC N = 1" && p.h == a.h && p.dt == a.dt)
+                .filter(|p| p.error <= a.error)
+                .map(|p| (format!("h = {}, Δt = {:.2e}", a.h, a.dt), a.error, p.error))
         })
-        .map(|a| format!("h = {}, Δt = {:.2e}", a.h, a.dt))
         .collect();
+    if !worse.is_empty() {
+        out.notes.push(format!(
+            "APIC does not rebound closer to −v0 than PIC at {} (docs/augury.md, against BFEMP \
+             and the baseline).",
+            worse
+                .iter()
+                .map(|(at, a, p)| format!(
+                    "{at} (APIC error {:.1} %, PIC {:.1} %)",
+                    100.0 * a,
+                    100.0 * p
+                ))
+                .collect::<Vec<_>>()
+                .join("; ")
+        ));
+    }
+    let worse: Vec<String> = worse.into_iter().map(|w| w.0).collect();
     out.checks.push(Check::holds(
         "impact: APIC rebounds closer to −v0 than PIC (same h, Δt)",
         if worse.is_empty() {
