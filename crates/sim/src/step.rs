@@ -9,7 +9,7 @@ use femp_solver::{
 use nalgebra::{SMatrix, SVector};
 
 use crate::error::SimError;
-use crate::objective::{Penalty, StepObjective};
+use crate::objective::{Dofs, Inertia, Penalty, StepObjective};
 use crate::report::StepReport;
 use crate::scene::BoundaryCondition;
 use crate::scene::spec::{LinearSpec, ProjectionSpec};
@@ -137,15 +137,19 @@ impl<const D: usize> World<D> {
                 self.mpm.as_ref(),
                 &self.fem,
                 &self.pairs,
-                n_grid,
-                fem_offset.clone(),
-                n_dofs,
-                &mass,
-                &raw,
+                Dofs {
+                    n_grid,
+                    fem_offset: fem_offset.clone(),
+                    n: n_dofs,
+                },
+                Inertia {
+                    mass: &mass,
+                    x_hat: &raw,
+                    gravity: SVector::zeros(),
+                    penalties: &[],
+                },
                 &x0,
                 w,
-                SVector::zeros(),
-                &[],
             )
             .contact_only();
             // Where the predictor is reached along a feasible path and no barrier term is active
@@ -187,15 +191,19 @@ impl<const D: usize> World<D> {
             mpm_ref,
             &self.fem,
             &self.pairs,
-            n_grid,
-            fem_offset.clone(),
-            n_dofs,
-            &mass,
-            &x_hat,
+            Dofs {
+                n_grid,
+                fem_offset: fem_offset.clone(),
+                n: n_dofs,
+            },
+            Inertia {
+                mass: &mass,
+                x_hat: &x_hat,
+                gravity: self.gravity,
+                penalties: &penalties,
+            },
             &x0,
             w,
-            self.gravity,
-            &penalties,
         );
         let _ = start_at_predictor(&mut obj, &x0, &fixed, &target, &x_hat, &mut x);
         report.setup_s = clock_setup + clock.elapsed().as_secs_f64();
@@ -682,19 +690,23 @@ impl<const D: usize> StepSetup<D> {
             world.mpm.as_ref(),
             &world.fem,
             &world.pairs,
-            self.n_grid,
-            self.fem_offset.clone(),
-            self.n_dofs,
-            &self.mass,
-            &self.x_hat,
+            Dofs {
+                n_grid: self.n_grid,
+                fem_offset: self.fem_offset.clone(),
+                n: self.n_dofs,
+            },
+            Inertia {
+                mass: &self.mass,
+                x_hat: &self.x_hat,
+                gravity: world.gravity,
+                penalties: &self.penalties,
+            },
             &self.x0,
             world
                 .bfemp()
                 .expect("a BFEMP world")
                 .integrator
                 .weight(world.dt),
-            world.gravity,
-            &self.penalties,
         )
     }
 }

@@ -27,7 +27,7 @@ impl<const D: usize> Penalty<D> {
 }
 
 /// The quadratic terms of the step: inertia about the predictor `x̂`, gravity, penalties.
-pub(super) struct Inertia<'a, const D: usize> {
+pub(crate) struct Inertia<'a, const D: usize> {
     /// Mass per DOF (the diagonal of `M`).
     pub mass: &'a [f64],
     pub x_hat: &'a [f64],

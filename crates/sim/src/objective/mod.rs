@@ -28,10 +28,11 @@ mod elements;
 mod inertia;
 pub(crate) mod particles;
 
-use config::{Configuration, Dofs};
+use config::Configuration;
+pub(crate) use config::Dofs;
 use contact::Contact;
 use elements::ElementElasticity;
-use inertia::Inertia;
+pub(crate) use inertia::Inertia;
 pub use inertia::Penalty;
 use particles::ParticleElasticity;
 
@@ -109,38 +110,26 @@ pub struct StepObjective<'a, const D: usize> {
 }
 
 impl<'a, const D: usize> StepObjective<'a, D> {
-    #[allow(clippy::too_many_arguments)]
+    /// The step's potential over the bodies, with their unknowns laid out by `dofs`, the
+    /// quadratic terms `inertia`, the step's start `x_start` (where the line search's feasible
+    /// paths begin) and the integrator weight `w`.
     pub(crate) fn new(
         mpm: Option<&'a Mpm<D>>,
         fem: &'a [FemBody<D>],
         pairs: &'a [Pair<D>],
-        n_grid: usize,
-        fem_offset: Vec<usize>,
-        n_dofs: usize,
-        mass: &'a [f64],
-        x_hat: &'a [f64],
+        dofs: Dofs,
+        inertia: Inertia<'a, D>,
         x_start: &'a [f64],
         w: f64,
-        gravity: SVector<f64, D>,
-        penalties: &'a [Penalty<D>],
     ) -> Self {
         Self {
             mpm,
             fem,
             x_start,
-            dofs: Dofs {
-                n_grid,
-                fem_offset,
-                n: n_dofs,
-            },
+            dofs,
             w,
             cfg: Configuration::new(fem),
-            inertia: Inertia {
-                mass,
-                x_hat,
-                gravity,
-                penalties,
-            },
+            inertia,
             particles: ParticleElasticity::new(mpm),
             elements: ElementElasticity::new(fem),
             contact: Contact::new(mpm, fem, pairs),
