@@ -121,6 +121,11 @@ impl<const D: usize> World<D> {
             ..Default::default()
         };
         let w = integrator.weight(dt);
+        let dofs = Dofs {
+            n_grid,
+            fem_offset: fem_offset.clone(),
+            n: n_dofs,
+        };
         let any_friction = self.pairs.iter().any(|p| p.friction.mu > 0.0);
         let mut report = StepReport {
             friction_converged: true,
@@ -137,11 +142,7 @@ impl<const D: usize> World<D> {
                 self.mpm.as_ref(),
                 &self.fem,
                 &self.pairs,
-                Dofs {
-                    n_grid,
-                    fem_offset: fem_offset.clone(),
-                    n: n_dofs,
-                },
+                dofs.clone(),
                 Inertia {
                     mass: &mass,
                     x_hat: &raw,
@@ -191,11 +192,7 @@ impl<const D: usize> World<D> {
             mpm_ref,
             &self.fem,
             &self.pairs,
-            Dofs {
-                n_grid,
-                fem_offset: fem_offset.clone(),
-                n: n_dofs,
-            },
+            dofs,
             Inertia {
                 mass: &mass,
                 x_hat: &x_hat,

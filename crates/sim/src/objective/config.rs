@@ -7,6 +7,7 @@ use crate::bodies::{FemBody, Mpm};
 
 /// Where the bodies' unknowns sit in `x`: the grid nodes' positions first (`n_grid` nodes),
 /// then each FEM body's vertices from `fem_offset[b]`.
+#[derive(Clone)]
 pub(crate) struct Dofs {
     pub n_grid: usize,
     pub fem_offset: Vec<usize>,
