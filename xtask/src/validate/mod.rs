@@ -42,6 +42,10 @@ use saved::{Done, git_describe, load, save, utc_minute};
 pub use scenes::{contact, fem_body, mpm_body, mpm_grid};
 use workers::{run_workers, say};
 
+/// The largest total-energy gain over E₀ (a fraction of E₀) still counted as round-off: the
+/// bound of every "energy never above E₀" row, and of a note saying the energy rose.
+const ROUND_OFF_GAIN: f64 = 1e-9;
+
 struct Experiment {
     name: &'static str,
     section: &'static str,

@@ -16,7 +16,7 @@ use femp::scene::{
 
 use super::charts::{self, Chart, Series};
 use super::scenes::name_of;
-use super::{Check, Ctx, Outcome, Pictures, Tier};
+use super::{Check, Ctx, Outcome, Pictures, ROUND_OFF_GAIN, Tier};
 
 const V0: f64 = 40.0;
 
@@ -444,13 +444,10 @@ pub fn run(ctx: &Ctx) -> Result<Outcome> {
     Ok(out)
 }
 
-/// The rows every run must pass: linear momentum to the Newton tolerance (Newton stops when
-/// velocities are converged to ε_d: the momentum residual is at most M ε_d, i.e. `tol` =
-/// ε_d / V0 relative to Σ m|v|) and no penetration.
 /// The rings note's sentence on whether the total energy rose above E₀ (gain as a fraction of
-/// E₀; above 1e-9 E₀ — the round-off bound of the stabilised scheme's criterion — it rose).
+/// E₀; above [`ROUND_OFF_GAIN`] it rose).
 fn rise_sentence(max_gain: f64) -> String {
-    if max_gain > 1e-9 {
+    if max_gain > ROUND_OFF_GAIN {
         let pct = 100.0 * max_gain;
         let shown = if pct >= 0.01 {
             format!("{pct:.2}")
@@ -466,6 +463,9 @@ fn rise_sentence(max_gain: f64) -> String {
     }
 }
 
+/// The rows every run must pass: linear momentum to the Newton tolerance (Newton stops when
+/// velocities are converged to ε_d: the momentum residual is at most M ε_d, i.e. `tol` =
+/// ε_d / V0 relative to Σ m|v|) and no penetration.
 fn conservation_rows(out: &mut Outcome, who: &str, f: &Figures, tol: f64) {
     out.checks.push(Check::at_most(
         &format!("{who}: max |Δ momentum| / Σm|v₀|"),
@@ -489,7 +489,7 @@ fn energy_stable_rows(out: &mut Outcome, who: &str, f: &Figures, tol: f64) {
         format!("{:.2e} %", 100.0 * f.max_gain),
         "≤ 0 (energy never above E₀)",
         "1e-9 E₀ (round-off)",
-        f.max_gain <= 1e-9,
+        f.max_gain <= ROUND_OFF_GAIN,
     ));
 }
 
