@@ -115,6 +115,11 @@ fn march(d0: f64, lp: f64, scale: f64, opts: &CcdOptions, dist: impl Fn(f64) -> 
 }
 
 /// Point `p` against segment `(a, b)`, each moving linearly from `*0` to `*1`.
+///
+/// Computed in the frame of `a`'s start: every position relative to `a₀` and every motion
+/// relative to `a`'s (exact differences of nearby doubles), so a query far from the origin —
+/// whose positions along the step would round to a handful of representable points — marches
+/// on the true relative motion; a query of huge coordinates is scaled by a power of two first.
 pub fn point_edge<const D: usize>(
     p0: &SVector<f64, D>,
     a0: &SVector<f64, D>,
@@ -124,16 +129,18 @@ pub fn point_edge<const D: usize>(
     b1: &SVector<f64, D>,
     opts: &CcdOptions,
 ) -> CcdResult {
-    let (dp, da, db) = (p1 - p0, a1 - a0, b1 - b0);
-    let lp = (dp - da).norm().max((dp - db).norm());
-    let scale = query_scale(&[p0, a0, b0], lp);
-    let d0 = point_edge::sq_dist(p0, a0, b0).sqrt();
+    let [q0, b, dq, db] = relative([p0, b0], [p1, b1], a0, a1);
+    let z = SVector::<f64, D>::zeros();
+    let lp = dq.norm().max((dq - db).norm());
+    let scale = query_scale(&[&q0, &z, &b], lp);
+    let d0 = point_edge::sq_dist(&q0, &z, &b).sqrt();
     march(d0, lp, scale, opts, |t| {
-        point_edge::sq_dist(&(p0 + dp * t), &(a0 + da * t), &(b0 + db * t)).sqrt()
+        point_edge::sq_dist(&(q0 + dq * t), &z, &(b + db * t)).sqrt()
     })
 }
 
-/// Point `p` against triangle `(a, b, c)` (3D), each moving linearly from `*0` to `*1`.
+/// Point `p` against triangle `(a, b, c)` (3D), each moving linearly from `*0` to `*1` (in
+/// `a`'s frame, as [`point_edge`]).
 pub fn point_triangle(
     p0: &Vector3<f64>,
     a0: &Vector3<f64>,
@@ -145,18 +152,47 @@ pub fn point_triangle(
     c1: &Vector3<f64>,
     opts: &CcdOptions,
 ) -> CcdResult {
-    let (dp, da, db, dc) = (p1 - p0, a1 - a0, b1 - b0, c1 - c0);
-    let lp = (dp - da).norm().max((dp - db).norm()).max((dp - dc).norm());
-    let scale = query_scale(&[p0, a0, b0, c0], lp);
-    let d0 = point_triangle::sq_dist(p0, a0, b0, c0).sqrt();
+    let [q0, b, c, dq, db, dc] = relative([p0, b0, c0], [p1, b1, c1], a0, a1);
+    let z = Vector3::zeros();
+    let lp = dq.norm().max((dq - db).norm()).max((dq - dc).norm());
+    let scale = query_scale(&[&q0, &z, &b, &c], lp);
+    let d0 = point_triangle::sq_dist(&q0, &z, &b, &c).sqrt();
     march(d0, lp, scale, opts, |t| {
-        point_triangle::sq_dist(
-            &(p0 + dp * t),
-            &(a0 + da * t),
-            &(b0 + db * t),
-            &(c0 + dc * t),
-        )
-        .sqrt()
+        point_triangle::sq_dist(&(q0 + dq * t), &z, &(b + db * t), &(c + dc * t)).sqrt()
+    })
+}
+
+/// The points `x0` (start) and `x1` (end) of a query relative to the moving vertex `a`: the
+/// starts `x0 − a0` and the motions `(x1 − x0) − (a1 − a0)`, as `[starts…, motions…]`. Each
+/// difference is of nearby doubles (exact when within a factor of two). Coordinates so large
+/// that a difference would overflow are first scaled by a power of two (exactly; distances
+/// scale with it and times of impact do not change).
+fn relative<const D: usize, const N: usize, const M: usize>(
+    x0: [&SVector<f64, D>; N],
+    x1: [&SVector<f64, D>; N],
+    a0: &SVector<f64, D>,
+    a1: &SVector<f64, D>,
+) -> [SVector<f64, D>; M] {
+    debug_assert_eq!(M, 2 * N);
+    let big = x0
+        .iter()
+        .chain(&x1)
+        .chain([&a0, &a1])
+        .fold(0.0f64, |m, v| m.max(v.amax()));
+    let k = if big > 1e150 && big.is_finite() {
+        // 2^-(exponent of big) brings every coordinate below 1.
+        (-(big.log2().ceil())).exp2()
+    } else {
+        1.0
+    };
+    let da = (a1 - a0) * k;
+    std::array::from_fn(|i| {
+        if i < N {
+            (x0[i] * k) - (a0 * k)
+        } else {
+            let j = i - N;
+            ((x1[j] * k) - (x0[j] * k)) - da
+        }
     })
 }
 

@@ -46,6 +46,7 @@ pub mod ccd;
 pub mod distance;
 mod error;
 pub mod friction;
+pub mod intersect;
 mod potential;
 pub mod single;
 

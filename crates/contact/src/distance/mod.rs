@@ -12,6 +12,7 @@
 //! * Degenerate primitives fall back to the lower-dimensional feature: an edge of zero length is
 //!   a point, a triangle of zero area is handled through its edges.
 
+mod accurate;
 pub mod point_edge;
 pub mod point_point;
 pub mod point_triangle;

@@ -82,13 +82,33 @@ pub fn sq_dist_in<const D: usize>(
     match r {
         PointEdgeRegion::V0 => point_point::sq_dist(p, e0),
         PointEdgeRegion::V1 => point_point::sq_dist(p, e1),
-        PointEdgeRegion::Interior => {
-            // The residual form |a − t e|² keeps full relative accuracy near the line, where
-            // the equivalent a·a − (a·e)²/(e·e) cancels catastrophically (CCD relies on it).
-            let (a, e) = (p - e0, e1 - e0);
-            let t = a.dot(&e) / e.norm_squared();
-            (a - e * t).norm_squared()
-        }
+        PointEdgeRegion::Interior => interior_sq_dist(p, e0, e1),
+    }
+}
+
+/// The squared distance to the edge's line. The residual form `|a − t e|²` is accurate to
+/// about `ε|a|` in the distance (rounded differences and products; the equivalent
+/// `a·a − (a·e)²/(e·e)` would cancel catastrophically): plenty away from the line. Closer than
+/// `1e-7 |a|` — a point almost on the line of a long edge, or far along a needle's line — the
+/// distance is recomputed from exact differences in double-double arithmetic
+/// ([`super::accurate`]), so its relative accuracy never falls below ~1e-12 (CCD marches on
+/// it; a distance overestimated by more than the gap lets it step through).
+#[inline]
+fn interior_sq_dist<const D: usize>(
+    p: &SVector<f64, D>,
+    e0: &SVector<f64, D>,
+    e1: &SVector<f64, D>,
+) -> f64 {
+    let (a, e) = (p - e0, e1 - e0);
+    let ee = e.norm_squared();
+    let t = a.dot(&e) / ee;
+    let s = (a - e * t).norm_squared();
+    if s > 1e-14 * a.norm_squared() && s.is_finite() {
+        s
+    } else if ee > 0.0 && ee.is_finite() {
+        super::accurate::point_line_sq(p, e0, e1)
+    } else {
+        s
     }
 }
 

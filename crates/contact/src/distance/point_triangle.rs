@@ -62,16 +62,63 @@ pub fn barycentric(p: &V3, t0: &V3, t1: &V3, t2: &V3) -> Option<(f64, f64)> {
     Some(((a22 * r1 - a12 * r2) / det, (a11 * r2 - a12 * r1) / det))
 }
 
-/// The region of `p`.
+/// The region of `p`: `Face` if its projection onto the triangle's plane lies in the closed
+/// triangle (and the triangle has an area), else the closest of the three edges' regions.
+///
+/// The projection test is the sign of `n · ((t_j − t_i) × (p − t_i))` for each edge `(t_i,
+/// t_j)`, `n = (t1 − t0) × (t2 − t0)` — the projection's signed sub-areas, which need no
+/// projected point. It is evaluated in double precision with an error bound, and again from
+/// exact differences in double-double arithmetic when a sign is within the bound (points near
+/// an edge's line in the plane; every point of a sliver, whose normal rounding tilts).
+/// Outside the face the closest edge is the one whose (accurate) segment distance is least —
+/// the closest point of the triangle is then on its boundary. Every distance and derivative
+/// evaluates the formula of this one decision ([`sq_dist`] is `sq_dist_in(region(..))`).
 pub fn region(p: &V3, t0: &V3, t1: &V3, t2: &V3) -> PointTriangleRegion {
-    if let Some((b1, b2)) = barycentric(p, t0, t1, t2)
-        && b1 >= 0.0
-        && b2 >= 0.0
-        && b1 + b2 <= 1.0
-    {
+    if projects_inside(p, t0, t1, t2) {
         return PointTriangleRegion::Face;
     }
-    // On the boundary: the closest of the three edges, and its sub-region.
+    boundary_region(p, t0, t1, t2)
+}
+
+/// Whether the projection of `p` lies in the closed triangle, which has an area.
+fn projects_inside(p: &V3, t0: &V3, t1: &V3, t2: &V3) -> bool {
+    let (e1, e2) = (t1 - t0, t2 - t0);
+    let n = e1.cross(&e2);
+    // Squared bounds throughout (no square roots on the fast path).
+    let nbound2 = e1.norm_squared() * e2.norm_squared();
+    // |fl(n) − n| ≤ ~4ε |e1||e2| (including the rounding of e1, e2 themselves).
+    const K: f64 = 32.0 * f64::EPSILON;
+    const K2: f64 = K * K;
+    let mut uncertain = !(n.norm_squared() > 1e6 * K2 * nbound2);
+    if !uncertain {
+        for (u, v) in [(t0, t1), (t1, t2), (t2, t0)] {
+            let (e, b) = (v - u, p - u);
+            let c = n.dot(&e.cross(&b));
+            // Error of the triple product: the normal's error times |e × b| plus the
+            // product's own rounding, both below K |e1||e2| |e| |b|.
+            let bound2 = K2 * nbound2 * e.norm_squared() * b.norm_squared();
+            if !(c * c > bound2) {
+                uncertain = true;
+                break;
+            }
+            if c < 0.0 {
+                return false;
+            }
+        }
+    }
+    if uncertain {
+        if !(p.iter().chain(t0.iter()).chain(t1.iter()).chain(t2.iter())).all(|x| x.is_finite()) {
+            return false;
+        }
+        let (s, area) = super::accurate::face_sides(p, t0, t1, t2);
+        return area && s.iter().all(|&x| x >= 0);
+    }
+    true
+}
+
+/// The closest of the three edges (and the edge's sub-region), for a point whose closest
+/// triangle point is on the boundary.
+fn boundary_region(p: &V3, t0: &V3, t1: &V3, t2: &V3) -> PointTriangleRegion {
     let edges = [(t0, t1), (t1, t2), (t2, t0)];
     let mut best = (f64::INFINITY, PointTriangleRegion::V0);
     for (k, (a, b)) in edges.iter().enumerate() {
@@ -92,56 +139,30 @@ pub fn region(p: &V3, t0: &V3, t1: &V3, t2: &V3) -> PointTriangleRegion {
     best.1
 }
 
-/// Squared distance from `p` to the triangle: `|p − c|²` with `c` the closest point (see
-/// [`closest_point`]); the fast path CCD marches with.
+/// Squared distance from `p` to the triangle: the formula of its [`region`] (the same
+/// decision the derivatives take). Accurate to ~1e-12 relative for every triangle — slivers,
+/// needles, coincident vertices — and relative to the triangle, not the origin.
 pub fn sq_dist(p: &V3, t0: &V3, t1: &V3, t2: &V3) -> f64 {
-    (p - closest_point(p, t0, t1, t2)).norm_squared()
+    sq_dist_in(region(p, t0, t1, t2), p, t0, t1, t2)
 }
 
-/// The point of the triangle closest to `p`, by Voronoi-region tests on dot products
-/// (Ericson, *Real-Time Collision Detection*, §5.1.5). Degenerate triangles fall back to the
-/// closest point on their edges.
-pub fn closest_point(p: &V3, a: &V3, b: &V3, c: &V3) -> V3 {
-    let (ab, ac, ap) = (b - a, c - a, p - a);
-    let (d1, d2) = (ab.dot(&ap), ac.dot(&ap));
-    if d1 <= 0.0 && d2 <= 0.0 {
-        return *a;
+/// The point of the triangle closest to `p` (of its [`region`]; a degenerate triangle's
+/// closest point is on its edges).
+pub fn closest_point(p: &V3, t0: &V3, t1: &V3, t2: &V3) -> V3 {
+    use PointTriangleRegion::*;
+    let on_edge = |a: &V3, b: &V3| a + (b - a) * point_edge::parameter(p, a, b).clamp(0.0, 1.0);
+    match region(p, t0, t1, t2) {
+        V0 => *t0,
+        V1 => *t1,
+        V2 => *t2,
+        E01 => on_edge(t0, t1),
+        E12 => on_edge(t1, t2),
+        E20 => on_edge(t2, t0),
+        Face => {
+            let n = (t1 - t0).cross(&(t2 - t0));
+            p - n * ((p - t0).dot(&n) / n.norm_squared())
+        }
     }
-    let bp = p - b;
-    let (d3, d4) = (ab.dot(&bp), ac.dot(&bp));
-    if d3 >= 0.0 && d4 <= d3 {
-        return *b;
-    }
-    let vc = d1 * d4 - d3 * d2;
-    if vc <= 0.0 && d1 >= 0.0 && d3 <= 0.0 {
-        return a + ab * (d1 / (d1 - d3));
-    }
-    let cp = p - c;
-    let (d5, d6) = (ab.dot(&cp), ac.dot(&cp));
-    if d6 >= 0.0 && d5 <= d6 {
-        return *c;
-    }
-    let vb = d5 * d2 - d1 * d6;
-    if vb <= 0.0 && d2 >= 0.0 && d6 <= 0.0 {
-        return a + ac * (d2 / (d2 - d6));
-    }
-    let va = d3 * d6 - d5 * d4;
-    if va <= 0.0 && d4 - d3 >= 0.0 && d5 - d6 >= 0.0 {
-        return b + (c - b) * ((d4 - d3) / ((d4 - d3) + (d5 - d6)));
-    }
-    let sum = va + vb + vc;
-    if !(sum.abs() > 0.0) || !sum.is_finite() {
-        // Degenerate: the closest of the three edges.
-        let best = [(a, b), (b, c), (c, a)]
-            .into_iter()
-            .map(|(u, v)| {
-                let t = point_edge::parameter(p, u, v).clamp(0.0, 1.0);
-                u + (v - u) * t
-            })
-            .min_by(|x, y| (p - x).norm_squared().total_cmp(&(p - y).norm_squared()));
-        return best.unwrap_or(*a);
-    }
-    a + ab * (vb / sum) + ac * (vc / sum)
 }
 
 /// Squared distance with the formula of a given region.
@@ -154,11 +175,28 @@ pub fn sq_dist_in(r: PointTriangleRegion, p: &V3, t0: &V3, t1: &V3, t2: &V3) -> 
         E01 => point_edge::sq_dist_in(PointEdgeRegion::Interior, p, t0, t1),
         E12 => point_edge::sq_dist_in(PointEdgeRegion::Interior, p, t1, t2),
         E20 => point_edge::sq_dist_in(PointEdgeRegion::Interior, p, t2, t0),
-        Face => {
-            let n = (t1 - t0).cross(&(t2 - t0));
-            let g = (p - t0).dot(&n);
-            g * g / n.norm_squared()
-        }
+        Face => face_sq_dist(p, t0, t1, t2),
+    }
+}
+
+/// `(a·n)²/(n·n)`: in double precision when its error estimate (`~ε |a||e1||e2|` in `a·n`,
+/// `~ε |e1||e2|` in `n`) is below 1e-8 of the value, else from exact differences in
+/// double-double ([`super::accurate`]).
+fn face_sq_dist(p: &V3, t0: &V3, t1: &V3, t2: &V3) -> f64 {
+    let (a, e1, e2) = (p - t0, t1 - t0, t2 - t0);
+    let n = e1.cross(&e2);
+    let g = a.dot(&n);
+    let m = n.norm_squared();
+    let scale2 = e1.norm_squared() * e2.norm_squared();
+    const K: f64 = 8.0 * f64::EPSILON;
+    const TRUST2: f64 = (1e8 * K) * (1e8 * K);
+    if m > TRUST2 * scale2 && g * g > TRUST2 * scale2 * a.norm_squared() && m.is_finite() {
+        return g * g / m;
+    }
+    if m > 0.0 && m.is_finite() {
+        super::accurate::point_plane_sq(p, t0, t1, t2)
+    } else {
+        g * g / m
     }
 }
 
