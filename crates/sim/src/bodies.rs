@@ -129,6 +129,8 @@ pub struct FemBody<const D: usize> {
     pub boundary: Boundary<D>,
     /// Boundary facets as `u32` triples (for contact).
     pub facets: Vec<[u32; 3]>,
+    /// The boundary facets' edges, each once (2D: the facets), for crossing tests.
+    pub edges: Vec<[u32; 2]>,
     /// Per boundary vertex (same order as `boundary.vertices()`): lumped boundary measure, the
     /// contact weight of the vertex when it acts as a "particle" against another FEM body.
     pub vertex_weight: Vec<f64>,

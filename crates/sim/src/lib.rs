@@ -34,11 +34,13 @@ pub mod metrics;
 pub mod motion;
 mod objective;
 pub mod output;
+mod overlap;
 pub mod render;
 mod report;
 pub mod run;
 pub mod scene;
 mod step;
+pub mod sweep;
 pub mod world;
 
 pub use error::SimError;

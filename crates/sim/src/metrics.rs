@@ -34,8 +34,18 @@ pub struct Metrics {
     pub angular_momentum: [f64; 3],
     /// Smallest active contact distance (∞ if no contact).
     pub min_distance: f64,
-    /// Points inside or on another body (independent of the solver).
+    /// Points inside or on another body, plus boundary edges of a FEM body crossing another's
+    /// boundary facets (bodies can cross with no vertex inside; independent of the solver).
     pub penetrations: usize,
+    /// Points whose straight path over the step (from the last row's position to this one's)
+    /// went inside a body they can touch — what `penetrations`, an end-of-step count, cannot
+    /// see ([`crate::sweep`]; 0 in the first row).
+    pub swept_entered: usize,
+    /// How deep the deepest of those paths went (m; 0 if none).
+    pub swept_depth: f64,
+    /// Substeps the step was solved in (BFEMP; 1 unless a straight path would have passed
+    /// through a body at the scene's Δt).
+    pub substeps: usize,
     /// Newton iterations of the step.
     pub newton_iterations: usize,
     /// Friction iterations of the step.
@@ -82,9 +92,9 @@ pub fn csv_header<const D: usize>(forces_of: &[&str], augury: bool) -> String {
         h.push_str(",angular_momentum");
     }
     h.push_str(if augury {
-        ",min_distance,penetrations,augury_iterations,contact_terms,wall_s"
+        ",min_distance,penetrations,swept_entered,swept_depth,augury_iterations,contact_terms,wall_s"
     } else {
-        ",min_distance,penetrations,newton_iterations,friction_iterations,contact_terms,backtracks,ccd_limited,exact_hessians,reused_hessians,pcg_iterations,wall_s"
+        ",min_distance,penetrations,swept_entered,swept_depth,newton_iterations,friction_iterations,contact_terms,backtracks,ccd_limited,exact_hessians,reused_hessians,pcg_iterations,substeps,wall_s"
     });
     for kind in ["force", "friction"] {
         for name in forces_of {
@@ -114,6 +124,9 @@ impl Metrics {
         if report.contact_terms > 0 {
             self.min_distance = self.min_distance.min(report.min_distance);
         }
+        self.swept_entered = report.swept.entered;
+        self.swept_depth = report.swept.depth;
+        self.substeps = report.substeps;
     }
 
     /// One CSV row.
@@ -145,18 +158,22 @@ impl Metrics {
         }
         if self.augury {
             r.push_str(&format!(
-                ",{:.9e},{},{},{},{:.6e}",
+                ",{:.9e},{},{},{:.6e},{},{},{:.6e}",
                 self.min_distance,
                 self.penetrations,
+                self.swept_entered,
+                self.swept_depth,
                 self.augury_iterations,
                 self.contact_terms,
                 self.wall_s
             ));
         } else {
             r.push_str(&format!(
-                ",{:.9e},{},{},{},{},{},{},{},{},{},{:.6e}",
+                ",{:.9e},{},{},{:.6e},{},{},{},{},{},{},{},{},{},{:.6e}",
                 self.min_distance,
                 self.penetrations,
+                self.swept_entered,
+                self.swept_depth,
                 self.newton_iterations,
                 self.friction_iterations,
                 self.contact_terms,
@@ -165,6 +182,7 @@ impl Metrics {
                 self.exact_hessians,
                 self.reused_hessians,
                 self.pcg_iterations,
+                self.substeps,
                 self.wall_s
             ));
         }
@@ -197,6 +215,7 @@ impl<const D: usize> World<D> {
             t: self.time,
             dt: self.dt,
             min_distance: f64::INFINITY,
+            substeps: 1,
             augury: self.augury().is_some(),
             ..Default::default()
         };
@@ -244,6 +263,7 @@ impl<const D: usize> World<D> {
             m.penetrations = n;
             m.min_distance = d;
         }
+        m.penetrations += self.fem_crossings();
         m.kinetic_energy += m.affine_kinetic_energy;
         m.momentum = [p[0], p[1], p[2]];
         m.angular_momentum = [l[0], l[1], l[2]];
@@ -295,6 +315,31 @@ pub struct PairForce<const D: usize> {
 }
 
 impl<const D: usize> World<D> {
+    /// Crossings of FEM bodies' boundaries (edge–facet pairs whose interiors cross) between
+    /// every two FEM bodies that can touch (BFEMP: the contact pairs; augury: bodies whose
+    /// bounding boxes overlap).
+    pub fn fem_crossings(&self) -> usize {
+        let pairs: Vec<(usize, usize)> = if self.augury().is_some() {
+            let xs: Vec<&[SVector<f64, D>]> = self.fem.iter().map(|b| &b.x[..]).collect();
+            crate::overlap::box_pairs(&xs)
+        } else {
+            self.pairs
+                .iter()
+                .filter_map(|p| match p.points {
+                    Points::Fem { body } if body < p.facets_of => Some((body, p.facets_of)),
+                    _ => None,
+                })
+                .collect()
+        };
+        pairs
+            .into_iter()
+            .map(|(a, b)| {
+                let (a, b) = (&self.fem[a], &self.fem[b]);
+                crate::overlap::crossings(a, &a.x, b, &b.x, false).0
+            })
+            .sum()
+    }
+
     /// A pair's points (particles, or the boundary vertices of a FEM body) at their current
     /// positions, with their contact weights.
     fn pair_points(&self, pair: &crate::world::Pair<D>) -> (Vec<SVector<f64, D>>, Vec<f64>) {

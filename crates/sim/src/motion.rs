@@ -116,6 +116,14 @@ impl<const D: usize> Motion<D> {
         Self { segments: out }
     }
 
+    /// Whether any segment moves (a non-zero velocity or angular velocity): a moving script does
+    /// work on the bodies it drives.
+    pub fn moves(&self) -> bool {
+        self.segments
+            .iter()
+            .any(|s| s.v.iter().any(|&x| x != 0.0) || s.w.iter().any(|&x| x != 0.0))
+    }
+
     /// The rigid map from initial positions to positions at time `t`.
     pub fn at(&self, t: f64) -> Rigid<D> {
         let Some(last) = self.segments.last() else {

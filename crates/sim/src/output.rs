@@ -80,6 +80,30 @@ pub struct Summary {
     /// Steps after which some point was inside another body (BFEMP: must be 0; augury: how
     /// often the correction let bodies overlap).
     pub penetrating_steps: usize,
+    /// Steps in which a point's straight path over the step went inside a body it can touch
+    /// (`swept_entered` in metrics.csv; BFEMP: 0 in every shipped scene).
+    pub swept_steps: usize,
+    /// The deepest any point's straight path went inside a body over a step (m).
+    pub max_swept_depth: f64,
+    /// Steps in which a point's straight path passed through a body (in by one facet, out by
+    /// one facing away from it): augury steps whose correction let a vertex through (BFEMP
+    /// solves such a step in substeps instead, so 0).
+    pub passed_through_steps: usize,
+    /// BFEMP steps solved again in substeps because a straight path passed through a body at
+    /// the scene's Δt, and the most substeps one took.
+    pub substepped_steps: usize,
+    /// See `substepped_steps`.
+    pub max_substeps: usize,
+    /// The most the total energy (kinetic, elastic, barrier, gravity) rose above its initial
+    /// value at any step, as a fraction of the initial energy's scale (the larger of its
+    /// magnitude and its kinetic + elastic + barrier part); 0 if it never rose.
+    pub energy_rise: f64,
+    /// The step at which `energy_rise` was reached.
+    pub energy_rise_step: usize,
+    /// The total energy at the start and at `energy_rise_step` (J; J/m in 2D).
+    pub initial_energy: f64,
+    /// See `initial_energy`.
+    pub peak_energy: f64,
     /// What a user should know about a run that completed (also printed on stderr): bodies
     /// that overlapped, friction iterations that hit their limit.
     pub warnings: Vec<String>,

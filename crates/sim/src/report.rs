@@ -4,7 +4,7 @@
 use femp_solver::SolveStats;
 
 /// What a step did.
-#[derive(Clone, Debug, Default)]
+#[derive(Clone, Debug)]
 pub struct StepReport {
     /// Newton iterations over all friction iterations (0 for augury).
     pub newton_iterations: usize,
@@ -33,4 +33,58 @@ pub struct StepReport {
     /// force on the pair's points (x, y, z; z = 0 in 2D), the facets' body feeling the opposite
     /// (empty for augury).
     pub pair_forces: Vec<[[f64; 3]; 2]>,
+    /// The straight paths of the step's points against the bodies they can touch
+    /// ([`crate::sweep`]).
+    pub swept: crate::sweep::SweptReport,
+    /// Substeps the step was solved in (1 unless a point's straight path passed through a
+    /// body: [`crate::World::step`]).
+    pub substeps: usize,
+}
+
+impl StepReport {
+    /// Add the work of another solve of (part of) this step: iterations, solver statistics,
+    /// timings, and whether friction converged and a solve was retried.
+    pub(crate) fn add_work(&mut self, o: &StepReport) {
+        self.newton_iterations += o.newton_iterations;
+        self.friction_iterations += o.friction_iterations;
+        self.augury_iterations += o.augury_iterations;
+        self.friction_converged &= o.friction_converged;
+        if self.retried.is_none() {
+            self.retried.clone_from(&o.retried);
+        }
+        self.stats += &o.stats;
+        self.transfers_s += o.transfers_s;
+        self.setup_s += o.setup_s;
+        self.objective.add(&o.objective);
+    }
+
+    /// Take the end-of-step state of `last` (its contact terms, smallest distance, forces and
+    /// straight-path report).
+    pub(crate) fn take_state(&mut self, last: StepReport) {
+        self.contact_terms = last.contact_terms;
+        self.min_distance = last.min_distance;
+        self.pair_forces = last.pair_forces;
+        self.swept = last.swept;
+    }
+}
+
+impl Default for StepReport {
+    fn default() -> Self {
+        Self {
+            newton_iterations: 0,
+            friction_iterations: 0,
+            augury_iterations: 0,
+            friction_converged: true,
+            retried: None,
+            contact_terms: 0,
+            min_distance: f64::INFINITY,
+            stats: SolveStats::default(),
+            transfers_s: 0.0,
+            setup_s: 0.0,
+            objective: Default::default(),
+            pair_forces: Vec::new(),
+            swept: Default::default(),
+            substeps: 1,
+        }
+    }
 }

@@ -96,8 +96,8 @@ pub fn run_with<const D: usize>(
 ) -> Result<RunResult, SimError> {
     let start = Instant::now();
     let name = scene.name.clone();
-    let mut world = World::<D>::build(scene)?;
-    world.set_interrupt(opts.interrupt.clone());
+    let mut world = World::<D>::build_with(scene, opts.interrupt.clone())?;
+    let driven = world.driven();
     let mut out = Output::create(
         out_dir,
         &world,
@@ -176,12 +176,12 @@ pub fn run_with<const D: usize>(
             // hide the run's own error.
             (Err(d), Err(_)) => note(format_args!("warning: {d}")),
             (Err(d), Ok(())) => {
-                return Err(finish_failed(&mut summary, &out, start, d));
+                return Err(finish_failed(&mut summary, &out, start, d, driven));
             }
         }
     }
     if let Err(e) = ended {
-        return Err(finish_failed(&mut summary, &out, start, e));
+        return Err(finish_failed(&mut summary, &out, start, e, driven));
     }
     summary.status = "completed".into();
     summary.wall_s = start.elapsed().as_secs_f64();
@@ -191,6 +191,30 @@ pub fn run_with<const D: usize>(
             "points were inside another body after {} of {} steps (at most {} at once): the \
              contact did not keep the bodies apart; see `penetrations` in metrics.csv",
             summary.penetrating_steps, summary.steps, summary.max_penetrations
+        );
+        note(format_args!("[{name}] warning: {w}"));
+        summary.warnings.push(w);
+    }
+    if let Some(w) = energy_warning(&summary, driven) {
+        note(format_args!("[{name}] warning: {w}"));
+        summary.warnings.push(w);
+    }
+    if summary.passed_through_steps > 0 {
+        let w = format!(
+            "in {} of {} steps a point's straight path passed through another body (at most \
+             {:.3e} m deep): the contact let it through; see `swept_entered` and `swept_depth` \
+             in metrics.csv",
+            summary.passed_through_steps, summary.steps, summary.max_swept_depth
+        );
+        note(format_args!("[{name}] warning: {w}"));
+        summary.warnings.push(w);
+    }
+    if summary.substepped_steps > 0 {
+        let w = format!(
+            "{} of {} steps were solved again in substeps (up to {} of Δt/{}) because a point's \
+             straight path would have passed through a body: time.dt is too large for how fast \
+             the points move past the bodies they meet",
+            summary.substepped_steps, summary.steps, summary.max_substeps, summary.max_substeps
         );
         note(format_args!("[{name}] warning: {w}"));
         summary.warnings.push(w);
@@ -221,7 +245,17 @@ pub fn run_with<const D: usize>(
 
 /// Record a run's end by error in the summary (as far as the disk lets us) and hand the error
 /// back.
-fn finish_failed(summary: &mut Summary, out: &Output, start: Instant, e: SimError) -> SimError {
+fn finish_failed(
+    summary: &mut Summary,
+    out: &Output,
+    start: Instant,
+    e: SimError,
+    driven: bool,
+) -> SimError {
+    if let Some(w) = energy_warning(summary, driven) {
+        note(format_args!("[{}] warning: {w}", summary.scene));
+        summary.warnings.push(w);
+    }
     summary.status = if matches!(e, SimError::Interrupted { .. }) {
         "interrupted".into()
     } else {
@@ -253,6 +287,13 @@ fn drive<const D: usize>(
     let name = summary.scene.clone();
     let frame_dt = world.scene.spec.time.frame_interval.unwrap_or(world.dt);
     let mut m0 = world.measure();
+    let energy0 = total_energy(&m0);
+    let energy_scale = energy0
+        .abs()
+        .max(m0.kinetic_energy + m0.elastic_energy + m0.barrier_energy)
+        .max(f64::MIN_POSITIVE);
+    summary.initial_energy = energy0;
+    summary.peak_energy = energy0;
     // Forces are those of a step: none before the first.
     (m0.contact_forces, m0.friction_forces) = world.body_forces(&[]);
     out.metrics_row::<D>(&m0)?;
@@ -310,6 +351,18 @@ fn drive<const D: usize>(
                 note(format_args!("[{name}] {line}"));
             }
         }
+        if report.substeps > 1 {
+            let line = format!(
+                "step {}: a point's straight path passed through a body at Δt = {:e}; solved \
+                 again in {} substeps",
+                world.step, world.dt, report.substeps
+            );
+            if let Some(b) = &bar {
+                b.println(format!("[{name}] {line}"));
+            } else if opts.progress {
+                note(format_args!("[{name}] {line}"));
+            }
+        }
         let clock = Instant::now();
         let mut m = world.measure();
         summary.timing.measure_s += clock.elapsed().as_secs_f64();
@@ -318,6 +371,12 @@ fn drive<const D: usize>(
         (m.contact_forces, m.friction_forces) = world.body_forces(&report.pair_forces);
         m.wall_s = t0.elapsed().as_secs_f64();
         out.metrics_row::<D>(&m)?;
+        let rise = (total_energy(&m) - energy0) / energy_scale;
+        if rise > summary.energy_rise {
+            summary.energy_rise = rise;
+            summary.energy_rise_step = world.step;
+            summary.peak_energy = total_energy(&m);
+        }
         summary.steps = world.step;
         summary.simulated_time = world.time;
         if !opts.no_frames && world.time + 1e-12 >= next_frame {
@@ -367,6 +426,38 @@ fn drive<const D: usize>(
     Ok(())
 }
 
+/// The warning for a run whose total energy rose more than [`ENERGY_RISE_WARNING`] above its
+/// initial value although nothing (`driven`) does work on the bodies.
+fn energy_warning(summary: &Summary, driven: bool) -> Option<String> {
+    if !(summary.energy_rise > ENERGY_RISE_WARNING) || driven {
+        return None;
+    }
+    let factor = if summary.initial_energy > 0.0 {
+        format!(
+            " ({:.3}× its initial value)",
+            summary.peak_energy / summary.initial_energy
+        )
+    } else {
+        String::new()
+    };
+    Some(format!(
+        "the total energy rose from {:.4e} to {:.4e}{factor} by step {}, though no prescribed \
+         motion or moving boundary does work on the bodies: the time integrator added it — \
+         plain Newmark can with contact (docs/bfemp.md, time integrators); \
+         contact_stabilized_newmark and backward_euler do not",
+        summary.initial_energy, summary.peak_energy, summary.energy_rise_step
+    ))
+}
+
+/// Kinetic, elastic, barrier and gravitational energy of a metrics row.
+fn total_energy(m: &Metrics) -> f64 {
+    m.kinetic_energy + m.elastic_energy + m.barrier_energy + m.gravity_energy
+}
+
+/// A run's total energy may rise above its initial value by this fraction of its scale before
+/// a run that nothing drives warns ([`Summary::energy_rise`]).
+pub const ENERGY_RISE_WARNING: f64 = 0.01;
+
 /// `, about 3 min left` from the mean step time so far (empty when done or nothing is known).
 fn eta(elapsed: f64, done: usize, total: usize) -> String {
     if done == 0 || done >= total {
@@ -406,6 +497,11 @@ fn record(m: &mut Metrics, summary: &mut Summary, report: &StepReport) {
     summary.retried_steps += usize::from(report.retried.is_some());
     summary.max_penetrations = summary.max_penetrations.max(m.penetrations);
     summary.penetrating_steps += usize::from(m.penetrations > 0);
+    summary.swept_steps += usize::from(report.swept.entered > 0);
+    summary.max_swept_depth = summary.max_swept_depth.max(report.swept.depth);
+    summary.passed_through_steps += usize::from(report.swept.tunnelled > 0);
+    summary.substepped_steps += usize::from(report.substeps > 1);
+    summary.max_substeps = summary.max_substeps.max(report.substeps);
     let tm = &mut summary.timing;
     tm.transfers_s += report.transfers_s;
     tm.setup_s += report.setup_s;

@@ -15,6 +15,30 @@ use crate::scene::BoundaryCondition;
 use crate::scene::spec::{LinearSpec, ProjectionSpec};
 use crate::world::{MethodState, Transfer, World};
 
+/// What a BFEMP step changes, kept to solve the step again in substeps.
+type SavedMpm<const D: usize> = (
+    Vec<SVector<f64, D>>,
+    Vec<SVector<f64, D>>,
+    Vec<SMatrix<f64, D, D>>,
+    Vec<SMatrix<f64, D, D>>,
+    Vec<SVector<f64, D>>,
+    Vec<SVector<f64, D>>,
+);
+
+/// A BFEMP world's state at the start of a step ([`World::save`]).
+pub(crate) struct Saved<const D: usize> {
+    time: f64,
+    step: usize,
+    mpm: Option<SavedMpm<D>>,
+    #[allow(clippy::type_complexity)]
+    fem: Vec<(
+        Vec<SVector<f64, D>>,
+        Vec<SVector<f64, D>>,
+        Vec<SVector<f64, D>>,
+        Vec<SVector<f64, D>>,
+    )>,
+}
+
 /// The unknowns of one step and what they start from (see [`World::setup`]).
 pub(crate) struct StepSetup<const D: usize> {
     pub(crate) n_grid: usize,
@@ -35,7 +59,16 @@ pub(crate) struct StepSetup<const D: usize> {
 
 impl<const D: usize> World<D> {
     /// Advance by one time step.
+    ///
+    /// A BFEMP step is checked along the straight paths of its points ([`crate::sweep`]): if a
+    /// point's path from where it was to where the step put it passes through a body (in
+    /// through one facet, out through one facing away from it), the step is solved again from
+    /// its start as 2, 4, 8, … substeps of Δt/n (each checked the same way), up to
+    /// `solver.max_substeps`; if even that does not keep every path out, the step fails with
+    /// the deepest path named and the world back at the step's start. The report says how many
+    /// substeps the step took and counts the work of every attempt.
     pub fn step(&mut self) -> Result<StepReport, SimError> {
+        let before = self.positions();
         let integrator = match &mut self.method {
             MethodState::Bfemp(b) => b.integrator,
             MethodState::Augury(aug) => {
@@ -50,14 +83,155 @@ impl<const D: usize> World<D> {
                         time: self.time,
                     });
                 }
-                let report = aug.step(&mut self.fem, self.step, self.time)?;
+                let mut report = aug.step(&mut self.fem, self.step, self.time)?;
                 self.time = aug.system.time;
                 self.step += 1;
+                report.swept = self.sweep(&before);
                 return Ok(report);
             }
         };
         // BFEMP: the Newton solver checks the interrupt flag before every iteration.
-        self.step_bfemp(integrator)
+        let saved = self.save();
+        let mut report = self.step_bfemp(integrator)?;
+        report.swept = self.sweep(&before);
+        if report.swept.tunnelled == 0 {
+            return Ok(report);
+        }
+        self.substepped(integrator, &saved, report)
+    }
+
+    /// The step from `saved` again in substeps, after `first` (the whole step's attempt) let a
+    /// point pass through a body.
+    fn substepped(
+        &mut self,
+        integrator: Integrator,
+        saved: &Saved<D>,
+        first: StepReport,
+    ) -> Result<StepReport, SimError> {
+        let (dt, max) = (self.dt, self.scene.spec.solver.max_substeps);
+        let mut worst = first.swept.clone();
+        let mut work = StepReport::default();
+        work.add_work(&first);
+        let mut n = 2;
+        while n <= max {
+            self.restore(saved);
+            self.set_dt(dt / n as f64);
+            let attempt = self.substeps(integrator, n, &mut work);
+            self.set_dt(dt);
+            match attempt? {
+                Ok(mut report) => {
+                    self.time = saved.time + dt;
+                    self.step = saved.step + 1;
+                    let last = std::mem::take(&mut report);
+                    report = work;
+                    report.take_state(last);
+                    report.substeps = n;
+                    return Ok(report);
+                }
+                Err(swept) => worst = swept,
+            }
+            n = if n == max { max + 1 } else { (2 * n).min(max) };
+        }
+        self.restore(saved);
+        Err(SimError::StepFailed {
+            step: saved.step,
+            time: saved.time,
+            message: format!(
+                "a point passed through a body: {}{}; reduce time.dt (the points move too far \
+                 in one step for the bodies they meet)",
+                worst.describe(),
+                if max > 1 {
+                    format!(", even in substeps of Δt/{max} (solver.max_substeps)")
+                } else {
+                    " (solver.max_substeps = 1: no substeps)".to_string()
+                }
+            ),
+        })
+    }
+
+    /// `n` steps of the current Δt, each checked along its straight paths: the last one's report
+    /// with every one's work added into `work`, or the straight-path report of the first that
+    /// let a point through.
+    fn substeps(
+        &mut self,
+        integrator: Integrator,
+        n: usize,
+        work: &mut StepReport,
+    ) -> Result<Result<StepReport, crate::sweep::SweptReport>, SimError> {
+        let mut last = StepReport::default();
+        let mut swept = crate::sweep::SweptReport::default();
+        for _ in 0..n {
+            let before = self.positions();
+            let mut r = self.step_bfemp(integrator)?;
+            r.swept = self.sweep(&before);
+            work.add_work(&r);
+            if r.swept.tunnelled > 0 {
+                return Ok(Err(r.swept));
+            }
+            swept.merge(r.swept.clone());
+            last = r;
+        }
+        last.swept = swept;
+        Ok(Ok(last))
+    }
+
+    /// Set Δt of the steps that follow (the world's and every pair's friction, whose
+    /// mollifier threshold is ε_v Δt).
+    fn set_dt(&mut self, dt: f64) {
+        self.dt = dt;
+        for p in &mut self.pairs {
+            p.friction.dt = dt;
+        }
+    }
+
+    /// The state a BFEMP step changes.
+    fn save(&self) -> Saved<D> {
+        Saved {
+            time: self.time,
+            step: self.step,
+            mpm: self.mpm.as_ref().map(|m| {
+                (
+                    m.x.clone(),
+                    m.v.clone(),
+                    m.b.clone(),
+                    m.f.clone(),
+                    m.a.clone(),
+                    m.contact_force.clone(),
+                )
+            }),
+            fem: self
+                .fem
+                .iter()
+                .map(|b| {
+                    (
+                        b.x.clone(),
+                        b.v.clone(),
+                        b.a.clone(),
+                        b.contact_force.clone(),
+                    )
+                })
+                .collect(),
+        }
+    }
+
+    /// Back to a saved state.
+    fn restore(&mut self, s: &Saved<D>) {
+        self.time = s.time;
+        self.step = s.step;
+        if let (Some(m), Some((x, v, b, f, a, c))) = (self.mpm.as_mut(), &s.mpm) {
+            m.x.clone_from(x);
+            m.v.clone_from(v);
+            m.b.clone_from(b);
+            m.f.clone_from(f);
+            m.a.clone_from(a);
+            m.contact_force.clone_from(c);
+        }
+        for (body, (x, v, a, c)) in self.fem.iter_mut().zip(&s.fem) {
+            body.x.clone_from(x);
+            body.v.clone_from(v);
+            body.a.clone_from(a);
+            body.contact_force.clone_from(c);
+        }
     }
 
     /// One BFEMP step with `integrator`.

@@ -148,6 +148,15 @@ impl<const D: usize> World<D> {
     /// Build the state of a validated scene (the scene's dimension must be `D`). Rejects
     /// initially overlapping bodies.
     pub fn build(scene: Scene) -> Result<Self, SimError> {
+        Self::build_with(scene, None)
+    }
+
+    /// [`World::build`] that a set `interrupt` flag stops between bodies of its overlap checks
+    /// ([`SimError::Interrupted`] at step 0), and that keeps the flag ([`World::set_interrupt`]).
+    pub fn build_with(
+        scene: Scene,
+        interrupt: Option<std::sync::Arc<std::sync::atomic::AtomicBool>>,
+    ) -> Result<Self, SimError> {
         let spec = &scene.spec;
         assert_eq!(
             spec.dimension, D,
@@ -368,6 +377,7 @@ impl<const D: usize> World<D> {
                         fixed,
                         fully_prescribed: fully,
                         boundary,
+                        edges: crate::overlap::boundary_edges::<D>(&facets),
                         facets,
                         vertex_weight,
                         contact_force: vec![SVector::zeros(); m.num_vertices()],
@@ -515,10 +525,11 @@ impl<const D: usize> World<D> {
             })),
             interrupt: None,
         };
-        world.check_overlaps()?;
         let mut world = world;
+        world.set_interrupt(interrupt);
+        world.check_overlaps()?;
         if world.scene.spec.method == crate::scene::Method::Augury {
-            check_augury_overlaps(&world.fem)?;
+            check_augury_overlaps(&world.fem, || world.interrupted())?;
             world.method =
                 MethodState::Augury(Box::new(AuguryState::build(&world.scene.spec, &world.fem)?));
         }
@@ -568,6 +579,15 @@ impl<const D: usize> World<D> {
             }
         }
         (total, friction)
+    }
+
+    /// Whether anything outside the bodies does work on them: a prescribed vertex set or a
+    /// level-set boundary that moves (then the total energy may rise legitimately).
+    pub fn driven(&self) -> bool {
+        self.fem
+            .iter()
+            .any(|b| b.prescribed.iter().any(|(_, m)| m.moves()))
+            || self.boundaries.iter().any(|b| b.motion.moves())
     }
 
     /// Whether the interrupt flag is set.
@@ -624,6 +644,21 @@ impl<const D: usize> World<D> {
                     ),
                 });
             }
+        }
+        // FEM bodies whose boundaries cross or touch with no vertex inside the other, or that
+        // coincide: each FEM pair once (both directions are pairs).
+        for pair in &self.pairs {
+            let Points::Fem { body: a } = pair.points else {
+                continue;
+            };
+            let b = pair.facets_of;
+            if a > b {
+                continue;
+            }
+            if self.interrupted() {
+                return Err(SimError::Interrupted { step: 0, time: 0.0 });
+            }
+            fem_pair_overlap(&self.fem[a], &self.fem[b], false)?;
         }
         if let Some(m) = &self.mpm
             && m.bodies.len() > 1
@@ -721,18 +756,71 @@ fn points_inside<const D: usize>(
     })
 }
 
-/// Augury scenes: no FEM body may start with a boundary vertex inside another (touching is
-/// allowed).
-fn check_augury_overlaps<const D: usize>(fem: &[FemBody<D>]) -> Result<(), SimError> {
-    for (i, a) in fem.iter().enumerate() {
-        let points: Vec<SVector<f64, D>> = a.boundary.vertices().iter().map(|&v| a.x[v]).collect();
-        for (j, b) in fem.iter().enumerate() {
-            if i == j {
-                continue;
-            }
+/// Augury scenes: no FEM body may start with a boundary vertex inside another, its boundary
+/// crossing another's, or its elements inside another (coincident bodies); touching is allowed.
+/// Only bodies whose bounding boxes overlap are compared (sorted and swept: about `n log n` for
+/// many bodies apart); `interrupted` is asked between pairs.
+fn check_augury_overlaps<const D: usize>(
+    fem: &[FemBody<D>],
+    interrupted: impl Fn() -> bool,
+) -> Result<(), SimError> {
+    let xs: Vec<&[SVector<f64, D>]> = fem.iter().map(|b| &b.x[..]).collect();
+    for (i, j) in crate::overlap::box_pairs(&xs) {
+        if interrupted() {
+            return Err(SimError::Interrupted { step: 0, time: 0.0 });
+        }
+        for (a, b) in [(&fem[i], &fem[j]), (&fem[j], &fem[i])] {
+            let points: Vec<SVector<f64, D>> =
+                a.boundary.vertices().iter().map(|&v| a.x[v]).collect();
             if let Some(e) = points_inside(&points, b, &(a.name.clone(), b.name.clone()), true) {
                 return Err(e);
             }
+        }
+        fem_pair_overlap(&fem[i], &fem[j], true)?;
+    }
+    Ok(())
+}
+
+/// The overlap error for FEM bodies `a` and `b` whose boundaries cross (or, unless
+/// `touching_allowed`, touch) or whose elements lie inside each other (coincident bodies).
+fn fem_pair_overlap<const D: usize>(
+    a: &FemBody<D>,
+    b: &FemBody<D>,
+    touching_allowed: bool,
+) -> Result<(), SimError> {
+    let err = |detail: String| SimError::Overlap {
+        a: a.name.clone(),
+        b: b.name.clone(),
+        detail,
+    };
+    let (n, first) = crate::overlap::crossings(a, &a.x, b, &b.x, !touching_allowed);
+    if let Some(c) = first {
+        return Err(err(format!(
+            "their boundaries {} ({n} edge–facet pair(s)); the first near {:?} (boundary edge {} \
+             against boundary facet {})",
+            if touching_allowed {
+                "cross"
+            } else {
+                "cross or touch"
+            },
+            c.near.as_slice(),
+            c.edge,
+            c.facet
+        )));
+    }
+    for (x, y) in [(a, b), (b, a)] {
+        if let Some((k, at)) = crate::overlap::element_inside(x, &x.x, y, &y.x) {
+            return Err(SimError::Overlap {
+                a: x.name.clone(),
+                b: y.name.clone(),
+                detail: format!(
+                    "element {k} of `{}` (centroid {:?}) lies inside `{}`: the bodies overlap \
+                     (or coincide) without a vertex inside the other",
+                    x.name,
+                    at.as_slice(),
+                    y.name
+                ),
+            });
         }
     }
     Ok(())

@@ -262,6 +262,9 @@ fn box_corners(field: &str, min: &[f64], max: &[f64], d: usize) -> Result<(), Si
 /// solve is not interruptible, so its length is bounded here.
 pub const MAX_PCG_ITERATIONS: usize = 100_000;
 
+/// The most substeps a step may be split into (`solver.max_substeps`).
+pub const MAX_SUBSTEPS: usize = 1 << 20;
+
 /// The most augury iterations per step (`augury.iterations`; the paper uses 1): a step is not
 /// interruptible, so its length is bounded here.
 pub const MAX_AUGURY_ITERATIONS: usize = 1000;
@@ -383,6 +386,12 @@ pub fn validate(s: &SceneSpec) -> Result<(), SimError> {
         return Err(invalid(
             "solver.max_friction_iterations",
             "must be at least 1",
+        ));
+    }
+    if !(1..=MAX_SUBSTEPS).contains(&s.solver.max_substeps) {
+        return Err(invalid(
+            "solver.max_substeps",
+            format!("{} must be from 1 to {MAX_SUBSTEPS}", s.solver.max_substeps),
         ));
     }
     if !(s.solver.pcg_rtol > 0.0 && s.solver.pcg_rtol < 1.0) {

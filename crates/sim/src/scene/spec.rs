@@ -226,6 +226,10 @@ pub struct SolverSpec {
     /// When a step's Newton solve fails (iteration limit, stalled line search), solve the step
     /// again from its start with the other `projection`; the step fails only if both do.
     pub retry_other_projection: bool,
+    /// The most substeps a step may be split into when a point's straight path over it would
+    /// pass through a body ([`crate::sweep`]): the step is solved again as 2, 4, 8, … substeps
+    /// up to this many; 1 never splits (such a step fails at once).
+    pub max_substeps: usize,
 }
 
 /// The Newton direction's linear solver (`solver.linear`).
@@ -264,6 +268,7 @@ impl Default for SolverSpec {
             pcg_rtol_max: None,
             reuse_hessian_below: 0.0,
             retry_other_projection: true,
+            max_substeps: 1024,
         }
     }
 }

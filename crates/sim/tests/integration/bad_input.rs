@@ -576,3 +576,97 @@ fn a_stretched_element_does_not_stall_the_overlap_check() {
     let found: Vec<usize> = inside.iter().map(|&(p, _)| p).collect();
     assert_eq!(found, vec![0, 1]);
 }
+
+/// Two one-cell bars laid across each other (0.16 m² in common) have no vertex inside the
+/// other: the vertex test passed them, and every metrics row said 0 penetrations (issue 39).
+/// Their crossing boundaries are found (exact predicates), in BFEMP and augury scenes; so are
+/// coincident bodies, whose vertices all lie on each other's boundary.
+#[test]
+fn bodies_whose_boundaries_cross_or_coincide_are_rejected() {
+    let bar = |name: &str, min: [f64; 2], max: [f64; 2]| {
+        json!({ "kind": "fem", "name": name,
+                "mesh": { "rectangle": { "min": min, "max": max, "cells": [1, 1] } },
+                "material": { "E": 1e5, "nu": 0.3, "rho": 1 } })
+    };
+    let scene = |b: Value, augury: bool| {
+        let mut v = json!({
+            "dimension": 2, "time": { "dt": 0.01, "duration": 0.02 },
+            "bodies": [ bar("a", [-2.0, -0.2], [2.0, 0.2]), b ] });
+        if augury {
+            v["method"] = json!("augury");
+        } else {
+            v["contact"] = json!({ "dhat": 0.01, "kappa": 1e5 });
+        }
+        v
+    };
+    let crossed = bar("b", [-0.2, -2.0], [0.2, 2.0]);
+    for augury in [false, true] {
+        expect_error(
+            &scene(crossed.clone(), augury),
+            &[
+                "`a` and `b` start overlapping",
+                "boundaries cross",
+                "near [0.0, -0.2]",
+            ],
+        );
+        // Coincident: BFEMP refuses the vertices on the other's boundary (distance 0) first;
+        // augury, where touching is allowed, by the elements inside.
+        expect_error(
+            &scene(bar("b", [-2.0, -0.2], [2.0, 0.2]), augury),
+            if augury {
+                &["start overlapping", "lies inside", "coincide"][..]
+            } else {
+                &["start overlapping", "distance 0"][..]
+            },
+        );
+        // Apart, they are fine.
+        assert_eq!(
+            error_of(
+                &scene(bar("b", [-0.2, 1.0], [0.2, 2.0]), augury),
+                Path::new(".")
+            ),
+            None
+        );
+    }
+    // Touching along an edge: an augury scene's start, a BFEMP scene's distance 0.
+    let touching = bar("b", [-0.2, 0.2], [0.2, 2.0]);
+    assert_eq!(
+        error_of(&scene(touching.clone(), true), Path::new(".")),
+        None
+    );
+    expect_error(&scene(touching, false), &["start overlapping"]);
+    // 3D: two bars crossing, every vertex outside the other.
+    let bar3 = |name: &str, min: [f64; 3], max: [f64; 3]| {
+        json!({ "kind": "fem", "name": name,
+                "mesh": { "cuboid": { "min": min, "max": max, "cells": [1, 1, 1] } },
+                "material": { "E": 1e5, "nu": 0.3, "rho": 1 } })
+    };
+    let v = json!({ "dimension": 3, "method": "augury", "time": { "dt": 0.01, "duration": 0.02 },
+        "bodies": [ bar3("a", [-2.0, -0.2, -0.2], [2.0, 0.2, 0.2]),
+                    bar3("b", [-0.2, -2.0, -0.1], [0.2, 2.0, 0.1]) ] });
+    let s = scene::parse(&v.to_string(), "bad.json", ".".into(), "bad").unwrap();
+    let e = World::<3>::build(s).err().expect("rejected").to_string();
+    assert!(e.contains("boundaries cross"), "{e}");
+}
+
+/// The penetration metric counts crossing boundaries too: two bars moved across each other
+/// (no vertex inside either) are `penetrations` > 0, apart 0.
+#[test]
+fn the_penetration_metric_counts_crossing_boundaries() {
+    let v = json!({ "dimension": 2, "method": "augury", "time": { "dt": 0.01, "duration": 0.02 },
+        "bodies": [
+            { "kind": "fem", "name": "a", "mesh": { "rectangle": { "min": [-2, -0.2], "max": [2, 0.2], "cells": [1, 1] } },
+              "material": { "E": 1e5, "nu": 0.3, "rho": 1 } },
+            { "kind": "fem", "name": "b", "mesh": { "rectangle": { "min": [-0.2, 1.0], "max": [0.2, 5.0], "cells": [1, 1] } },
+              "material": { "E": 1e5, "nu": 0.3, "rho": 1 } } ] });
+    let s = scene::parse(&v.to_string(), "m.json", ".".into(), "m").unwrap();
+    let mut w = World::<2>::build(s).unwrap();
+    assert_eq!(w.measure().penetrations, 0);
+    for x in &mut w.fem[1].x {
+        x[1] -= 3.0;
+    }
+    let inside_vertices = femp::world::inside_elements(&w.fem[1].x, &w.fem[0].mesh, &w.fem[0].x);
+    assert!(inside_vertices.is_empty());
+    assert_eq!(w.fem_crossings(), 4);
+    assert_eq!(w.measure().penetrations, 4);
+}

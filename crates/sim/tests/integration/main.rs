@@ -12,6 +12,7 @@ mod pictures;
 mod sampling;
 mod stabilized;
 mod trust;
+mod tunnelling;
 
 /// Every allocation of these tests counts against a cap: one that would take the live total
 /// past it aborts the test binary (as an out-of-memory kill would) instead of swapping the

@@ -1,0 +1,167 @@
+//! Whether two FEM bodies overlap in ways a vertex-inside test cannot see: boundaries that cross
+//! with no vertex of either inside the other (two bars laid across each other), and bodies that
+//! coincide (every vertex on the other's boundary, none strictly inside). Used to refuse scenes
+//! that start so ([`crate::World::build`]) and to count crossings in every step's
+//! `penetrations`.
+//!
+//! * Crossing boundaries: every boundary edge of one body against the other's boundary facets
+//!   (2D: edge–edge; 3D: edge–triangle both ways — two closed surfaces that intersect have an
+//!   edge of one through a triangle of the other), candidates from the broad phase (each edge
+//!   a "swept point" from one end to the other), decided by exact orientation predicates
+//!   ([`femp_contact::intersect`]).
+//! * Coincident or nested without a vertex inside: the centroid of an element of one body inside
+//!   the other (an element's centroid is strictly inside its own body).
+//!
+//! Bodies are first paired by their bounding boxes (sorted along one axis and swept), so many
+//! bodies far apart cost about `n log n`.
+
+use femp_contact::broad_phase::{self, Candidates};
+use femp_contact::intersect::{self, Intersection};
+use nalgebra::{SVector, Vector2, Vector3};
+
+use crate::bodies::{FemBody, inside_elements};
+
+/// The boundary edges of a body's boundary facets (2D: the facets; 3D: each edge once).
+pub(crate) fn boundary_edges<const D: usize>(facets: &[[u32; 3]]) -> Vec<[u32; 2]> {
+    if D == 2 {
+        return facets.iter().map(|f| [f[0], f[1]]).collect();
+    }
+    let mut e: Vec<[u32; 2]> = facets
+        .iter()
+        .flat_map(|f| [[f[0], f[1]], [f[1], f[2]], [f[2], f[0]]])
+        .map(|[a, b]| [a.min(b), a.max(b)])
+        .collect();
+    e.sort_unstable();
+    e.dedup();
+    e
+}
+
+/// A crossing of two bodies' boundaries: an edge of the first, a facet of the second, and a
+/// point near where they cross (the edge's midpoint).
+#[derive(Clone, Debug)]
+pub(crate) struct Crossing<const D: usize> {
+    pub edge: usize,
+    pub facet: usize,
+    pub near: SVector<f64, D>,
+}
+
+/// The boundary crossings of bodies `a` (positions `xa`) and `b` (`xb`): the number of
+/// crossing (edge, facet) pairs both ways, and the first. With `touching_is_crossing`, meeting
+/// without crossing counts as well (BFEMP: a distance of 0 is infeasible).
+pub(crate) fn crossings<const D: usize>(
+    a: &FemBody<D>,
+    xa: &[SVector<f64, D>],
+    b: &FemBody<D>,
+    xb: &[SVector<f64, D>],
+    touching_is_crossing: bool,
+) -> (usize, Option<Crossing<D>>) {
+    let mut count = 0;
+    let mut first = None;
+    let mut one_way =
+        |ea: &FemBody<D>, xe: &[SVector<f64, D>], fb: &FemBody<D>, xf: &[SVector<f64, D>]| {
+            let (p0, p1): (Vec<_>, Vec<_>) = ea
+                .edges
+                .iter()
+                .map(|e| (xe[e[0] as usize], xe[e[1] as usize]))
+                .unzip();
+            let mut c = Candidates::default();
+            broad_phase::candidates_swept(&p0, &p1, xf, xf, &fb.facets, 0.0, &mut c);
+            for k in 0..p0.len() {
+                for &f in c.of(k) {
+                    let v = fb.facets[f as usize];
+                    let hit = if D == 2 {
+                        let t = |x: &SVector<f64, D>| Vector2::new(x[0], x[1]);
+                        intersect::segment_segment_2d(
+                            &t(&p0[k]),
+                            &t(&p1[k]),
+                            &t(&xf[v[0] as usize]),
+                            &t(&xf[v[1] as usize]),
+                        )
+                    } else {
+                        let t = |x: &SVector<f64, D>| Vector3::new(x[0], x[1], x[D - 1]);
+                        intersect::segment_triangle(
+                            &t(&p0[k]),
+                            &t(&p1[k]),
+                            &t(&xf[v[0] as usize]),
+                            &t(&xf[v[1] as usize]),
+                            &t(&xf[v[2] as usize]),
+                        )
+                    };
+                    if hit == Intersection::Crossing
+                        || touching_is_crossing && hit == Intersection::Touching
+                    {
+                        count += 1;
+                        if first.is_none() {
+                            first = Some(Crossing {
+                                edge: k,
+                                facet: f as usize,
+                                near: (p0[k] + p1[k]) * 0.5,
+                            });
+                        }
+                    }
+                }
+            }
+        };
+    one_way(a, xa, b, xb);
+    if D == 3 {
+        // In 2D an edge–edge crossing is symmetric; in 3D the other body's edges may pierce
+        // this one's triangles where none of this one's edges pierces the other's.
+        one_way(b, xb, a, xa);
+    }
+    (count, first)
+}
+
+/// The first element of `a` (positions `xa`) whose centroid lies inside `b` (positions `xb`):
+/// bodies that coincide or overlap with no vertex strictly inside the other.
+pub(crate) fn element_inside<const D: usize>(
+    a: &FemBody<D>,
+    xa: &[SVector<f64, D>],
+    b: &FemBody<D>,
+    xb: &[SVector<f64, D>],
+) -> Option<(usize, SVector<f64, D>)> {
+    let centroids: Vec<SVector<f64, D>> = a
+        .mesh
+        .cells()
+        .iter()
+        .map(|c| c[..=D].iter().map(|&v| xa[v]).sum::<SVector<f64, D>>() / (D + 1) as f64)
+        .collect();
+    inside_elements(&centroids, &b.mesh, xb)
+        .into_iter()
+        .next()
+        .map(|(k, _)| (k, centroids[k]))
+}
+
+/// The pairs `(i, j)`, `i < j`, of bodies whose bounding boxes (of `x[i]`) overlap, by sorting
+/// them along the first axis and sweeping.
+pub(crate) fn box_pairs<const D: usize>(x: &[&[SVector<f64, D>]]) -> Vec<(usize, usize)> {
+    let boxes: Vec<Option<(SVector<f64, D>, SVector<f64, D>)>> = x
+        .iter()
+        .map(|p| {
+            let first = p.first()?;
+            Some(
+                p.iter()
+                    .fold((*first, *first), |(l, h), v| (l.inf(v), h.sup(v))),
+            )
+        })
+        .collect();
+    let mut order: Vec<usize> = (0..x.len()).filter(|&i| boxes[i].is_some()).collect();
+    order.sort_by(|&i, &j| {
+        let (a, b) = (boxes[i].unwrap().0[0], boxes[j].unwrap().0[0]);
+        a.total_cmp(&b)
+    });
+    let mut out = Vec::new();
+    for (k, &i) in order.iter().enumerate() {
+        let (lo, hi) = boxes[i].unwrap();
+        for &j in &order[k + 1..] {
+            let (lj, hj) = boxes[j].unwrap();
+            if lj[0] > hi[0] {
+                break;
+            }
+            if (0..D).all(|a| lj[a] <= hi[a] && lo[a] <= hj[a]) {
+                out.push((i.min(j), i.max(j)));
+            }
+        }
+    }
+    out.sort_unstable();
+    out
+}
