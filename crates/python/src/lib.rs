@@ -62,7 +62,9 @@ fn py_err(e: SimError) -> PyErr {
         | SimError::Overlap { .. }
         | SimError::TooLarge { .. } => SceneError::new_err(msg),
         SimError::Interrupted { .. } => PyKeyboardInterrupt::new_err(msg),
-        SimError::OutputBusy { .. } | SimError::StaleOutput { .. } => OutputError::new_err(msg),
+        SimError::OutputBusy { .. }
+        | SimError::StaleOutput { .. }
+        | SimError::OutputLink { .. } => OutputError::new_err(msg),
         _ => SimulationError::new_err(msg),
     }
 }

@@ -127,3 +127,30 @@ def test_bad_surfaces_are_refused_clearly(tmp_path):
         fm.tetrahedralize((np.vstack([v, v + 0.2]), np.vstack([f, f + 4])), tmp_path / "x.msh")
     assert fm.main([str(tmp_path / "missing.stl"), str(tmp_path / "x.msh")]) == 1
     assert not (tmp_path / "x.msh").exists()
+
+
+def test_bad_surfaces_and_outlines_are_named_value_errors(tmp_path):
+    """Issue 39: inputs that aborted the interpreter inside Gmsh or raised numpy's and meshio's
+    own errors are ValueErrors naming the file and what is wrong."""
+    v, f = icosphere(levels=1)
+    # Scaled by 1e300: Gmsh aborted the interpreter (SIGABRT).
+    meshio.write(tmp_path / "huge.stl", meshio.Mesh(v * 1e300, [("triangle", f)]))
+    with pytest.raises(ValueError, match=r"huge.stl: coordinates up to .* beyond what Gmsh meshes"):
+        fm.tetrahedralize(tmp_path / "huge.stl", tmp_path / "huge.msh")
+    with pytest.raises(ValueError, match="beyond what Gmsh meshes"):
+        fm.tetrahedralize((v * 1e300, f), tmp_path / "huge.msh")
+    # An OBJ face index out of range: a raw IndexError before.
+    (tmp_path / "bad.obj").write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 9\n")
+    with pytest.raises(ValueError, match=r"bad.obj: .*(vertex|cannot read)"):
+        fm.tetrahedralize(tmp_path / "bad.obj", tmp_path / "bad.msh")
+    with pytest.raises(ValueError, match="face 0 refers to vertex 7, but the file has 3"):
+        fm.tetrahedralize((v[:3], np.array([[0, 1, 7]])), tmp_path / "bad.msh")
+    # A truncated OBJ: numpy's "setting an array element with a sequence" without a file name.
+    (tmp_path / "cut.obj").write_text("v 0 0 0\nv 1 0 0\nv 0 1\nf 1 2 3\n")
+    with pytest.raises(ValueError, match=r"cut.obj"):
+        fm.tetrahedralize(tmp_path / "cut.obj", tmp_path / "cut.msh")
+    # The command line says so on stderr with status 1, never a traceback.
+    assert fm.main([str(tmp_path / "huge.stl"), str(tmp_path / "x.msh")]) == 1
+    # 2D outlines likewise.
+    with pytest.raises(ValueError, match="beyond what Gmsh meshes"):
+        fm.triangulate(np.array([[0, 0], [1e300, 0], [0, 1e300]]), tmp_path / "o.msh", 1e299)

@@ -39,6 +39,11 @@ def test_used_output_directories_are_refused_unless_overwrite(fixtures, tmp_path
         femp.run(s, tmp_path, max_steps=2, frames=False)
     r = femp.run(s, tmp_path, max_steps=3, frames=False, overwrite=True)
     assert r.summary["steps"] == 3
+    # An empty name is not the current directory (as `femp run --out ''`).
+    cwd = os.getcwd()
+    with pytest.raises(ValueError, match="out is empty"):
+        femp.run(s, "", max_steps=1, frames=False)
+    assert not os.path.exists(os.path.join(cwd, "summary.json"))
 
 
 def test_ctrl_c_stops_a_run_and_keeps_its_outputs(tmp_path, fixtures):

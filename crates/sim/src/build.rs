@@ -121,12 +121,17 @@ pub fn sample_shape<const D: usize>(
                 d >= a && d <= b && p[1] >= c[1]
             });
         }
-        ShapeSpec::Mesh { file } => {
-            let mesh: Mesh<D> =
-                gmsh::read_msh(&base_dir.join(file)).map_err(|e| SimError::Build {
-                    context: format!("{field}.file"),
-                    message: e.to_string(),
-                })?;
+        ShapeSpec::Mesh { file, reorient } => {
+            let mesh: Mesh<D> = gmsh::read_msh_with(
+                &base_dir.join(file),
+                gmsh::ReadOptions {
+                    reorient: *reorient,
+                },
+            )
+            .map_err(|e| SimError::Build {
+                context: format!("{field}.file"),
+                message: e.to_string(),
+            })?;
             let (lo, hi) = mesh.bounding_box();
             let thinnest = (hi - lo).min();
             if thinnest < h {
@@ -310,6 +315,12 @@ pub fn fem_mesh<const D: usize>(
                 cells[1],
             ))
         }
-        MeshSpec::File { path } => gmsh::read_msh::<D>(&base_dir.join(path)).map_err(err),
+        MeshSpec::File { path, reorient } => gmsh::read_msh_with::<D>(
+            &base_dir.join(path),
+            gmsh::ReadOptions {
+                reorient: *reorient,
+            },
+        )
+        .map_err(err),
     }
 }

@@ -80,6 +80,18 @@ pub enum SimError {
         /// What was found.
         found: String,
     },
+    /// A symbolic link inside the output directory where the run would write.
+    #[error(
+        "{}: a symbolic link where the run writes ({count} in --out): femp writes regular files inside --out and does not follow links out of it; remove {}",
+        path.display(),
+        if *count == 1 { "it" } else { "them" }
+    )]
+    OutputLink {
+        /// The first link.
+        path: PathBuf,
+        /// How many there are.
+        count: usize,
+    },
     /// The scene would need more than the limits allow (memory, steps).
     #[error("{field}: {message}")]
     TooLarge {

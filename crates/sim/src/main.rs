@@ -98,6 +98,28 @@ enum Command {
     },
 }
 
+/// Set a run's `summary.json` to `interrupted` (a second signal stops femp at once, before the
+/// run can record its end): rewritten whole, atomically, if it exists and still says
+/// `running`.
+fn mark_interrupted(path: &std::path::Path) {
+    let Ok(text) = std::fs::read_to_string(path) else {
+        return;
+    };
+    let Ok(mut v) = serde_json::from_str::<serde_json::Value>(&text) else {
+        return;
+    };
+    if v["status"] != "running" {
+        return;
+    }
+    v["status"] = "interrupted".into();
+    v["error"] = "stopped at once by a second interrupt signal (SIGINT, SIGTERM or SIGHUP), \
+                  during a step: the last step's row and frame may be missing"
+        .into();
+    if let Ok(text) = serde_json::to_string_pretty(&v) {
+        let _ = femp::output::write_replacing(path, text.as_bytes());
+    }
+}
+
 /// `femp check --trial N`: run the first `n` steps of `w` and extrapolate the whole run's wall
 /// time from them (empty for `n = 0`).
 fn trial_steps<const D: usize>(w: &mut femp::World<D>, n: usize) -> anyhow::Result<String> {
@@ -160,6 +182,16 @@ macro_rules! say {
 }
 
 fn main() -> std::process::ExitCode {
+    // A file-size limit (`ulimit -f`, a scheduler's) sends SIGXFSZ, which by default kills the
+    // process mid-write with `summary.json` still saying `running` and a `.tmp` frame left.
+    // Ignored, the write fails with EFBIG instead: the run records the failure, removes the
+    // partial file and keeps everything written so far.
+    #[cfg(unix)]
+    // SAFETY: setting a signal's disposition to SIG_IGN at the start of `main`, before any
+    // other thread exists, has no preconditions.
+    unsafe {
+        libc::signal(libc::SIGXFSZ, libc::SIG_IGN);
+    }
     // Errors are for users: one line naming what and where, no backtrace.
     match run(Cli::parse()) {
         Ok(()) => std::process::ExitCode::SUCCESS,
@@ -200,9 +232,12 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             // `interrupted`, and femp exits with 130. A second signal stops at once.
             let interrupt = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
             let flag = interrupt.clone();
+            let summary_path = out.join("summary.json");
             ctrlc::set_handler(move || {
                 if flag.swap(true, std::sync::atomic::Ordering::Relaxed) {
                     say!("second interrupt: stopping now");
+                    // The run cannot record its end itself now: say so in its summary.
+                    mark_interrupted(&summary_path);
                     std::process::exit(EXIT_INTERRUPTED.into());
                 }
             })

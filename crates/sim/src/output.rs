@@ -229,6 +229,66 @@ fn lock(dir: &Path) -> Result<File, SimError> {
     Ok(file)
 }
 
+/// Refuse symbolic links where a run writes inside `dir`: its lock, `summary.json`,
+/// `metrics.csv`, the scene copy, the `.pvd` collections, the `frames/` and `pictures/`
+/// directories and any `.vtu`, `.png` or `.gif` in them (with their temporaries). A link there
+/// would send a run's writes outside `--out` — through it, with or without `--overwrite`.
+/// (`--out` itself may be a link: that is where the user asked the files to go.)
+fn refuse_links<const D: usize>(dir: &Path, world: &World<D>) -> Result<(), SimError> {
+    let is_link = |p: &Path| std::fs::symlink_metadata(p).is_ok_and(|m| m.file_type().is_symlink());
+    let mut names: Vec<String> = [
+        LOCK_FILE,
+        "summary.json",
+        "summary.json.tmp",
+        "metrics.csv",
+        "metrics.csv.tmp",
+        "frames",
+        "pictures",
+    ]
+    .iter()
+    .map(|s| s.to_string())
+    .collect();
+    names.push(SCENE_COPY.to_string());
+    names.push(format!("{SCENE_COPY}.tmp"));
+    names.push(
+        std::path::Path::new(SCENE_COPY)
+            .with_extension("json.tmp")
+            .display()
+            .to_string(),
+    );
+    let bodies = world
+        .mpm
+        .iter()
+        .map(|_| "particles".to_string())
+        .chain(world.fem.iter().map(|b| b.name.clone()));
+    for b in bodies {
+        names.push(format!("{b}.pvd"));
+        names.push(format!("{b}.pvd.tmp"));
+    }
+    let mut links: Vec<PathBuf> = names
+        .iter()
+        .map(|n| dir.join(n))
+        .filter(|p| is_link(p))
+        .collect();
+    for sub in ["frames", "pictures"] {
+        if let Ok(entries) = std::fs::read_dir(dir.join(sub)) {
+            links.extend(
+                entries
+                    .filter_map(Result::ok)
+                    .filter(|e| e.file_type().is_ok_and(|t| t.is_symlink()))
+                    .map(|e| e.path()),
+            );
+        }
+    }
+    match links.first() {
+        None => Ok(()),
+        Some(first) => Err(SimError::OutputLink {
+            path: first.clone(),
+            count: links.len(),
+        }),
+    }
+}
+
 /// The files an earlier femp run left in `dir`: `summary.json`, `metrics.csv`, [`SCENE_COPY`], `*.pvd`,
 /// `frames/*.vtu`, `pictures/key_*.png` and `pictures/animation.gif` (and their temporaries).
 /// Nothing else in the directory is femp's.
@@ -311,6 +371,7 @@ impl Output {
         opts: OutputOptions,
     ) -> Result<Self, SimError> {
         std::fs::create_dir_all(dir).map_err(io(dir))?;
+        refuse_links(dir, world)?;
         let lock = lock(dir)?;
         let earlier = earlier_outputs(dir);
         if !earlier.is_empty() {

@@ -321,7 +321,21 @@ impl Pictures {
         self.view.pixel(&lift(x))
     }
 
-    /// Draw the last state as the final key frame if the run ended early (failure, interrupt,
+    /// Stop without drawing anything more (an interrupted run): close the GIF if it holds a
+    /// frame, else remove it (a GIF header alone is no picture). Returns every PNG written.
+    pub fn abandon(mut self) -> Vec<PathBuf> {
+        if let Some(area) = self.gif.take() {
+            if self.gif_done > 0 {
+                let _ = area.present();
+            } else {
+                drop(area);
+                let _ = std::fs::remove_file(self.dir.join("animation.gif"));
+            }
+        }
+        self.written
+    }
+
+    /// Draw the last state as the final key frame if the run ended early (failure,
     /// `max_steps`), and close the GIF. Returns every PNG written.
     pub fn finish<const D: usize>(mut self, world: &World<D>) -> Result<Vec<PathBuf>, SimError> {
         if self.opts.key_frames > 0 && self.keys_done < self.opts.key_frames {

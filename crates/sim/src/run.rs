@@ -170,7 +170,13 @@ pub fn run_with<const D: usize>(
         &mut inspect,
     );
     if let Some(p) = pictures.take() {
-        match (p.finish(&world), &ended) {
+        // Interrupted: stop at once, drawing nothing more.
+        let finished = if matches!(ended, Err(SimError::Interrupted { .. })) {
+            Ok(p.abandon())
+        } else {
+            p.finish(&world)
+        };
+        match (finished, &ended) {
             (Ok(_), _) => {}
             // The pictures up to a failure are worth keeping; a drawing error then must not
             // hide the run's own error.
@@ -383,7 +389,11 @@ fn drive<const D: usize>(
             out.frame(world)?;
             next_frame += frame_dt;
         }
-        if let Some(p) = pictures.as_mut() {
+        // A large picture takes seconds: not after an interrupt, which ends the run at the
+        // next step.
+        if let Some(p) = pictures.as_mut()
+            && !world.interrupted()
+        {
             p.update(world)?;
         }
         inspect(world, &m);

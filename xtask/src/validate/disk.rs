@@ -95,6 +95,7 @@ fn explicit_scene(
         "disk",
         MeshSpec::File {
             path: format!("../meshes/disk_{s}.msh"),
+            reorient: false,
         },
         material(),
     );

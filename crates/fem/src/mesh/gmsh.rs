@@ -5,9 +5,16 @@
 //! tetrahedra in 3D), ignores lower-dimensional elements (points, lines, and in 3D surface
 //! triangles — Gmsh writes them for physical groups), and rejects anything else (quads, hexes,
 //! higher-order elements) with the line of the first such element. Nodes no cell uses are
-//! dropped and the rest renumbered in order of their tags; cells are oriented positively. A 2D
-//! mesh must lie in a plane `z = const`. Every error names the file and, for ASCII files, the
-//! line.
+//! dropped and the rest renumbered in order of their tags. A 2D mesh must lie in a plane
+//! `z = const`. Every error names the file and, for ASCII files, the line.
+//!
+//! Refused, never repaired silently: a node tag defined twice, a tag of 0 (Gmsh numbers from 1),
+//! section counts that do not match the entries (MSH 4.1: the header's node and element
+//! counts and tag ranges against the blocks), an element tag repeated, two cells on the same
+//! nodes (a cell counted twice would count its mass twice), and cells of inconsistent
+//! orientation (a tangled mesh, or one whose tool ordered the nodes at random). A mesh whose
+//! cells are *all* inverted is refused too, unless [`ReadOptions::reorient`] asks to flip them
+//! (`"reorient": true` in a scene).
 
 use std::collections::HashMap;
 use std::fmt::Write as _;
@@ -22,6 +29,16 @@ use crate::FemError;
 struct RawNode {
     tag: u64,
     x: [f64; 3],
+    line: usize,
+}
+
+/// How a mesh file is read.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct ReadOptions {
+    /// Flip every cell of a mesh whose cells are *all* negatively oriented (a consistently
+    /// inverted mesh, as some tools write). Off: such a mesh is an error. A mesh with cells of
+    /// both orientations is an error either way.
+    pub reorient: bool,
 }
 
 /// An element as read: tag, Gmsh type, node tags, 1-based line (0 if unknown).
@@ -46,6 +63,12 @@ pub const MAX_MSH_BYTES: u64 = 1 << 30;
 /// Read a Gmsh mesh file into a `D`-dimensional mesh (at most [`MAX_MSH_BYTES`]).
 pub fn read_msh<const D: usize>(path: &Path) -> Result<Mesh<D>, FemError> {
     read_msh_limited(path, MAX_MSH_BYTES)
+}
+
+/// [`read_msh`] with options.
+pub fn read_msh_with<const D: usize>(path: &Path, opts: ReadOptions) -> Result<Mesh<D>, FemError> {
+    let bytes = read_regular_file(path, MAX_MSH_BYTES)?;
+    parse_msh_with(&bytes, path, opts)
 }
 
 /// Read a Gmsh mesh file of at most `max_bytes` into a `D`-dimensional mesh. Only regular files
@@ -98,6 +121,15 @@ pub fn read_regular_file(path: &Path, max_bytes: u64) -> Result<Vec<u8>, FemErro
 
 /// Parse the bytes of a Gmsh mesh file; `path` is only used in error messages.
 pub fn parse_msh<const D: usize>(bytes: &[u8], path: &Path) -> Result<Mesh<D>, FemError> {
+    parse_msh_with(bytes, path, ReadOptions::default())
+}
+
+/// [`parse_msh`] with options.
+pub fn parse_msh_with<const D: usize>(
+    bytes: &[u8],
+    path: &Path,
+    opts: ReadOptions,
+) -> Result<Mesh<D>, FemError> {
     let (version, binary) = header(bytes, path)?;
     let (nodes, elements) = if (2.0..3.0).contains(&version) {
         if binary {
@@ -109,6 +141,9 @@ pub fn parse_msh<const D: usize>(bytes: &[u8], path: &Path) -> Result<Mesh<D>, F
         }
         parse_v2(bytes, path)?
     } else if (version - 4.1).abs() < 1e-9 {
+        if !binary {
+            check_v41_sections(bytes, path)?;
+        }
         parse_v41(bytes, path, binary)?
     } else {
         return Err(file_error(
@@ -117,7 +152,7 @@ pub fn parse_msh<const D: usize>(bytes: &[u8], path: &Path) -> Result<Mesh<D>, F
             format!("MSH version {version} is not supported: save as MSH 4.1 or 2.2"),
         ));
     };
-    assemble::<D>(nodes, elements, path)
+    assemble::<D>(nodes, elements, path, opts)
 }
 
 /// Version and binary flag from `$MeshFormat`.
@@ -185,7 +220,11 @@ fn parse_v2(bytes: &[u8], path: &Path) -> Result<(Vec<RawNode>, Vec<RawElement>)
             parse(2),
             parse(3),
         ) {
-            (Some(tag), Some(x), Some(y), Some(z)) => nodes.push(RawNode { tag, x: [x, y, z] }),
+            (Some(tag), Some(x), Some(y), Some(z)) => nodes.push(RawNode {
+                tag,
+                x: [x, y, z],
+                line: i + 1,
+            }),
             _ => {
                 return Err(file_error(
                     path,
@@ -296,6 +335,7 @@ fn parse_v41(
                 nodes.push(RawNode {
                     tag,
                     x: [nd.x, nd.y, nd.z],
+                    line: 0,
                 });
             }
         }
@@ -387,7 +427,58 @@ fn assemble<const D: usize>(
     nodes: Vec<RawNode>,
     elements: Vec<RawElement>,
     path: &Path,
+    opts: ReadOptions,
 ) -> Result<Mesh<D>, FemError> {
+    let at = |line: usize| {
+        if line > 0 {
+            format!(" (line {line})")
+        } else {
+            String::new()
+        }
+    };
+    // Tags: from 1, each defined once.
+    let mut seen: HashMap<u64, usize> = HashMap::with_capacity(nodes.len());
+    for n in &nodes {
+        if n.tag == 0 {
+            return Err(file_error(
+                path,
+                n.line,
+                "node tag 0: Gmsh numbers nodes from 1",
+            ));
+        }
+        if let Some(first) = seen.insert(n.tag, n.line) {
+            return Err(file_error(
+                path,
+                n.line,
+                format!(
+                    "node {} is defined twice{}: a node tag names one node",
+                    n.tag,
+                    at(first).replace("line", "first on line")
+                ),
+            ));
+        }
+    }
+    let mut seen: HashMap<u64, usize> = HashMap::with_capacity(elements.len());
+    for e in &elements {
+        if e.tag == 0 {
+            return Err(file_error(
+                path,
+                e.line,
+                "element tag 0: Gmsh numbers elements from 1",
+            ));
+        }
+        if let Some(first) = seen.insert(e.tag, e.line) {
+            return Err(file_error(
+                path,
+                e.line,
+                format!(
+                    "element {} is defined twice{}",
+                    e.tag,
+                    at(first).replace("line", "first on line")
+                ),
+            ));
+        }
+    }
     let (want, ignore): (i64, &[i64]) = if D == 2 {
         (2, &[1, 8, 15])
     } else {
@@ -497,7 +588,26 @@ fn assemble<const D: usize>(
             c
         })
         .collect();
-    Mesh::new_oriented(vertices, cells).map_err(|err| match err {
+    // The same cell twice (same nodes in any order): its mass and stiffness would count twice.
+    let mut by_nodes: HashMap<Vec<usize>, usize> = HashMap::with_capacity(cells.len());
+    for (k, c) in cells.iter().enumerate() {
+        let mut key = c[..=D].to_vec();
+        key.sort_unstable();
+        if let Some(first) = by_nodes.insert(key, k) {
+            return Err(file_error(
+                path,
+                cells_raw[k].line,
+                format!(
+                    "element {} has the same nodes as element {}{}: a cell written twice would \
+                     count its mass and stiffness twice",
+                    cells_raw[k].tag,
+                    cells_raw[first].tag,
+                    at(cells_raw[first].line)
+                ),
+            ));
+        }
+    }
+    let mesh = Mesh::new_oriented(vertices.clone(), cells.clone()).map_err(|err| match err {
         FemError::DegenerateCell {
             cell,
             volume,
@@ -511,7 +621,141 @@ fn assemble<const D: usize>(
             ),
         ),
         other => other,
-    })
+    })?;
+    // Orientation: consistent, and positive unless the caller asked to flip an inverted mesh.
+    let probe = Mesh::<D> {
+        vertices,
+        cells: Vec::new(),
+    };
+    let negative: Vec<usize> = (0..cells.len())
+        .filter(|&k| probe.signed_volume_of(&cells[k]) < 0.0)
+        .collect();
+    if negative.len() == cells.len() {
+        if !opts.reorient {
+            return Err(file_error(
+                path,
+                cells_raw[0].line,
+                format!(
+                    "every element is inverted (negative {}; element {} the first): the file's \
+                     node order is reversed — set `\"reorient\": true` on the mesh to flip every \
+                     element, or re-export it",
+                    if D == 2 { "area" } else { "volume" },
+                    cells_raw[0].tag
+                ),
+            ));
+        }
+    } else if let Some(&k) = negative.first() {
+        // Name an element of the minority orientation.
+        let k = if 2 * negative.len() > cells.len() {
+            let mut neg = vec![false; cells.len()];
+            negative.iter().for_each(|&i| neg[i] = true);
+            (0..cells.len()).find(|&i| !neg[i]).unwrap_or(k)
+        } else {
+            k
+        };
+        return Err(file_error(
+            path,
+            cells_raw[k].line,
+            format!(
+                "element {} is oriented opposite to {} of the mesh's {} elements: a tangled mesh \
+                 (an element folded over its neighbours) or one whose nodes were ordered at \
+                 random — femp does not guess which; re-export it with consistent orientation",
+                cells_raw[k].tag,
+                if 2 * negative.len() > cells.len() {
+                    negative.len()
+                } else {
+                    cells.len() - negative.len()
+                },
+                cells.len()
+            ),
+        ));
+    }
+    Ok(mesh)
+}
+
+/// MSH 4.1 ASCII: the section headers' counts and tag ranges against what the blocks hold
+/// (`mshio` trusts the header: a dense tag range makes it drop the tags the file lists).
+fn check_v41_sections(bytes: &[u8], path: &Path) -> Result<(), FemError> {
+    let Ok(text) = std::str::from_utf8(bytes) else {
+        return Ok(()); // mshio reports it
+    };
+    let lines: Vec<&str> = text.lines().collect();
+    let nums = |i: usize| -> Option<Vec<u64>> {
+        lines
+            .get(i)?
+            .split_whitespace()
+            .map(|t| t.parse().ok())
+            .collect()
+    };
+    for (section, what) in [("$Nodes", "nodes"), ("$Elements", "elements")] {
+        let Some(s0) = lines.iter().position(|l| l.trim() == section) else {
+            continue;
+        };
+        let bad = |i: usize, m: String| Err(file_error(path, i + 1, m));
+        let Some(head) = nums(s0 + 1).filter(|h| h.len() >= 4) else {
+            return bad(s0 + 1, format!("malformed `{section}` header"));
+        };
+        let (blocks, total, min_tag, max_tag) = (head[0], head[1], head[2], head[3]);
+        let mut i = s0 + 2;
+        let mut count = 0u64;
+        let mut tags: HashMap<u64, usize> = HashMap::new();
+        for _ in 0..blocks {
+            let Some(bh) = nums(i).filter(|b| b.len() >= 4) else {
+                return bad(i, format!("malformed {what} block header"));
+            };
+            let n = bh[3];
+            if n > lines.len() as u64 {
+                return bad(
+                    i,
+                    format!("a block of {n} {what} in a file of {} lines", lines.len()),
+                );
+            }
+            i += 1;
+            let mut tag_lines = Vec::with_capacity(n as usize);
+            for _ in 0..n {
+                let Some(t) = lines
+                    .get(i)
+                    .and_then(|l| l.split_whitespace().next()?.parse::<u64>().ok())
+                else {
+                    return bad(i, format!("expected a {} tag", &what[..what.len() - 1]));
+                };
+                tag_lines.push((t, i + 1));
+                i += 1;
+            }
+            if what == "nodes" {
+                i += n as usize; // the coordinates follow the tags
+            }
+            for (t, line) in tag_lines {
+                if t == 0 || t < min_tag || t > max_tag {
+                    return bad(
+                        line - 1,
+                        format!(
+                            "{} tag {t} is outside the range {min_tag}–{max_tag} the `{section}` \
+                             header declares (Gmsh tags start at 1)",
+                            &what[..what.len() - 1]
+                        ),
+                    );
+                }
+                if let Some(first) = tags.insert(t, line) {
+                    return bad(
+                        line - 1,
+                        format!(
+                            "{} {t} is defined twice (first on line {first})",
+                            &what[..what.len() - 1]
+                        ),
+                    );
+                }
+            }
+            count += n;
+        }
+        if count != total {
+            return bad(
+                s0 + 1,
+                format!("the `{section}` header declares {total} {what}, its blocks hold {count}"),
+            );
+        }
+    }
+    Ok(())
 }
 
 fn write_file(path: &Path, text: &str) -> Result<(), FemError> {

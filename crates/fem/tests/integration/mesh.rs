@@ -169,11 +169,10 @@ fn gmsh_round_trips() {
 #[test]
 fn gmsh_reader_skips_lower_dimensional_elements_and_unused_nodes() {
     // Two triangles plus a line element and a point element, one unused node, tags unsorted.
-    let text = "$MeshFormat\n2.2 0 8\n$EndMeshFormat\n$Nodes\n5\n10 0 0 0\n20 1 0 0\n30 1 1 0\n40 0 1 0\n99 5 5 0\n$EndNodes\n$Elements\n4\n1 15 2 0 1 10\n2 1 2 0 1 10 20\n3 2 2 0 1 10 20 30\n4 2 2 0 1 10 40 30\n$EndElements\n";
+    let text = "$MeshFormat\n2.2 0 8\n$EndMeshFormat\n$Nodes\n5\n10 0 0 0\n20 1 0 0\n30 1 1 0\n40 0 1 0\n99 5 5 0\n$EndNodes\n$Elements\n4\n1 15 2 0 1 10\n2 1 2 0 1 10 20\n3 2 2 0 1 10 20 30\n4 2 2 0 1 10 30 40\n$EndElements\n";
     let m = parse_msh::<2>(text.as_bytes(), Path::new("inline.msh")).unwrap();
     assert_eq!(m.num_vertices(), 4);
     assert_eq!(m.num_cells(), 2);
-    // The second triangle was clockwise in the file: it is reoriented.
     assert!(m.cell_volume(1) > 0.0);
 }
 
@@ -243,7 +242,7 @@ fn malformed_mesh_files_name_file_and_line() {
     let e = msh_err::<2>(&broken);
     assert!(e.starts_with("bad.msh:"), "{e}");
     let quads = good
-        .replace("2 1 2 2\n", "2 1 3 1\n")
+        .replace("1 2 1 2\n2 1 2 2\n", "1 1 1 1\n2 1 3 1\n")
         .replace("1 1 2 4\n2 1 4 3\n", "1 1 2 4 3\n");
     let e = msh_err::<2>(&quads);
     assert!(
@@ -452,4 +451,110 @@ proptest::proptest! {
         let r = std::panic::catch_unwind(|| parse_msh::<2>(&b, Path::new("c.msh")).map(|_| ()));
         proptest::prop_assert!(r.is_ok(), "panicked after {ops:?}");
     }
+}
+
+/// Malformed meshes that used to be accepted silently (issue 39) are refused with the file, the
+/// line and the reason: a node tag defined twice, tag 0, an element tag repeated, the same cell
+/// twice (its mass counted twice), MSH 4.1 counts and tag ranges that do not match the blocks,
+/// elements of mixed orientation (tangled), and a wholly inverted mesh unless asked to flip it.
+#[test]
+fn malformed_gmsh_meshes_are_refused_not_repaired() {
+    use femp_fem::mesh::gmsh::{ReadOptions, parse_msh_with};
+    let head = "$MeshFormat\n2.2 0 8\n$EndMeshFormat\n";
+    let square = |nodes: &str, elements: &[&str]| {
+        format!(
+            "{head}$Nodes\n{}\n{nodes}$EndNodes\n$Elements\n{}\n{}\n$EndElements\n",
+            nodes.lines().count(),
+            elements.len(),
+            elements.join("\n")
+        )
+    };
+    let nodes = "1 0 0 0\n2 1 0 0\n3 1 1 0\n4 0 1 0\n";
+    let good = square(nodes, &["1 2 2 0 1 1 2 3", "2 2 2 0 1 1 3 4"]);
+    assert_eq!(
+        parse_msh::<2>(good.as_bytes(), Path::new("ok.msh"))
+            .unwrap()
+            .num_cells(),
+        2
+    );
+    // A node tag twice (second definition on line 9).
+    let e = msh_err::<2>(&square(
+        "1 0 0 0\n2 1 0 0\n3 1 1 0\n2 0 1 0\n",
+        &["1 2 2 0 1 1 2 3"],
+    ));
+    assert!(
+        e.starts_with("bad.msh:9:") && e.contains("node 2 is defined twice (first on line 7)"),
+        "{e}"
+    );
+    // Tag 0.
+    let e = msh_err::<2>(&square("0 0 0 0\n2 1 0 0\n3 1 1 0\n", &["1 2 2 0 1 0 2 3"]));
+    assert!(e.contains("node tag 0"), "{e}");
+    // An element tag twice.
+    let e = msh_err::<2>(&square(nodes, &["1 2 2 0 1 1 2 3", "1 2 2 0 1 1 3 4"]));
+    assert!(e.contains("element 1 is defined twice"), "{e}");
+    // The same cell twice, in another node order: three cells on one face.
+    let e = msh_err::<2>(&square(
+        nodes,
+        &["1 2 2 0 1 1 2 3", "2 2 2 0 1 1 3 4", "3 2 2 0 1 2 3 1"],
+    ));
+    assert!(
+        e.starts_with("bad.msh:15:")
+            && e.contains("element 3 has the same nodes as element 1 (line 13)"),
+        "{e}"
+    );
+    // Mixed orientation: the second triangle clockwise.
+    let e = msh_err::<2>(&square(nodes, &["1 2 2 0 1 1 2 3", "2 2 2 0 1 1 4 3"]));
+    assert!(
+        e.contains("element 2 is oriented opposite") && e.contains("tangled"),
+        "{e}"
+    );
+    // Every element inverted: refused, unless asked to flip them.
+    let inverted = square(nodes, &["1 2 2 0 1 1 3 2", "2 2 2 0 1 1 4 3"]);
+    let e = msh_err::<2>(&inverted);
+    assert!(
+        e.contains("every element is inverted") && e.contains("reorient"),
+        "{e}"
+    );
+    let m = parse_msh_with::<2>(
+        inverted.as_bytes(),
+        Path::new("inv.msh"),
+        ReadOptions { reorient: true },
+    )
+    .unwrap();
+    assert!((0..2).all(|c| m.cell_volume(c) > 0.0));
+    // ... a mixed mesh stays refused with the option.
+    let mixed = square(nodes, &["1 2 2 0 1 1 2 3", "2 2 2 0 1 1 4 3"]);
+    assert!(
+        parse_msh_with::<2>(
+            mixed.as_bytes(),
+            Path::new("m.msh"),
+            ReadOptions { reorient: true }
+        )
+        .is_err()
+    );
+    // MSH 4.1: counts and tag ranges against the blocks (mshio trusts the header).
+    let m = generate::rectangle(Vector2::zeros(), Vector2::new(1.0, 1.0), 1, 1).unwrap();
+    let v41 = to_msh41(&m);
+    let e = msh_err::<2>(&v41.replacen("1 4 1 4\n", "1 5 1 5\n", 1));
+    assert!(
+        e.contains("header declares 5 nodes, its blocks hold 4"),
+        "{e}"
+    );
+    let e = msh_err::<2>(&v41.replacen("1 4 1 4\n", "1 4 0 3\n", 1));
+    assert!(
+        e.contains("node tag 4 is outside the range 0–3") || e.contains("tag 0"),
+        "{e}"
+    );
+    let e = msh_err::<2>(&v41.replace("1 2 1 2\n", "1 3 1 3\n"));
+    assert!(
+        e.contains("header declares 3 elements, its blocks hold 2"),
+        "{e}"
+    );
+    // The same cell twice in 4.1: the second triangle written over the first's nodes.
+    let twice = v41.replace("\n2 1 4 3\n", "\n2 1 2 4\n");
+    let e = msh_err::<2>(&twice);
+    assert!(
+        e.contains("element 2 has the same nodes as element 1"),
+        "{e}"
+    );
 }

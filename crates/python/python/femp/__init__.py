@@ -202,6 +202,10 @@ def run(
     try:
         if not isinstance(scene, Scene):
             raise TypeError(f"femp.run needs a femp.Scene, got {type(scene).__name__}")
+        if not os.fspath(out):
+            # As `femp run --out ''`: an empty name is not a directory to write into (it would
+            # mean the current one).
+            raise ValueError("femp.run: out is empty: name the output directory")
         summary, header, rows = _femp.run(
             scene._inner, os.fspath(out), max_steps, frames, overwrite, progress
         )

@@ -47,7 +47,7 @@ def read_surface(path: PathLike):
     with warnings.catch_warnings():
         # meshio's binary-STL probe overflows harmlessly on ASCII files.
         warnings.simplefilter("ignore", RuntimeWarning)
-        m = meshio.read(os.fspath(path))
+        m = _meshio_read(meshio, path)
     tris = []
     for block in m.cells:
         if block.type == "triangle":
@@ -58,9 +58,47 @@ def read_surface(path: PathLike):
     if not tris:
         raise ValueError(f"{os.fspath(path)}: no triangles or quads in the file")
     points = np.asarray(m.points, dtype=float)
+    if points.ndim != 2 or points.shape[1] not in (2, 3):
+        raise ValueError(f"{os.fspath(path)}: points are not 2D or 3D coordinates")
     if points.shape[1] == 2:
         points = np.column_stack([points, np.zeros(len(points))])
-    return points, np.concatenate(tris).astype(np.int64)
+    tris = np.concatenate(tris).astype(np.int64)
+    _check_indices(tris, len(points), os.fspath(path))
+    return points, tris
+
+
+def _meshio_read(meshio, path: PathLike):
+    """meshio.read with its failures (a truncated file, an index out of range, text that is not
+    the format) as a ``ValueError`` naming the file."""
+    try:
+        return meshio.read(os.fspath(path))
+    except OSError:
+        raise
+    except Exception as e:  # meshio raises IndexError, ValueError, ReadError, …
+        raise ValueError(f"{os.fspath(path)}: cannot read it as a mesh ({type(e).__name__}: {e})") from e
+
+
+def _check_indices(cells: np.ndarray, n: int, where: str) -> None:
+    """Every cell's vertex indices within the ``n`` points."""
+    bad = (cells < 0) | (cells >= n)
+    if bad.any():
+        k = int(np.argwhere(bad.any(axis=1))[0, 0])
+        raise ValueError(f"{where}: face {k} refers to vertex {int(cells[k][bad[k]][0])}, but the "
+                         f"file has {n} vertices")
+
+
+# Gmsh meshes in double precision: far beyond this its arithmetic overflows (at 1e300 the
+# interpreter aborts inside Gmsh). Ample for metres or millimetres.
+MAX_COORDINATE = 1e12
+
+
+def _check_coordinates(points: np.ndarray, where: str) -> None:
+    if not np.isfinite(points).all():
+        raise ValueError(f"{where}: non-finite coordinates")
+    big = float(np.abs(points).max()) if points.size else 0.0
+    if big > MAX_COORDINATE:
+        raise ValueError(f"{where}: coordinates up to {big:.3g} are beyond what Gmsh meshes "
+                         f"(|x| ≤ {MAX_COORDINATE:.0e}): scale the geometry")
 
 
 def surface_volume(points: np.ndarray, triangles: np.ndarray) -> float:
@@ -129,8 +167,8 @@ def tetrahedralize(surface: Union[PathLike, tuple], out: PathLike, size: Optiona
         np.asarray(surface[0], float), np.asarray(surface[1], np.int64))
     if points.ndim != 2 or points.shape[1] != 3 or tris.ndim != 2 or tris.shape[1] != 3:
         raise ValueError(f"{where}: expected points (n×3) and triangles (m×3)")
-    if not np.isfinite(points).all():
-        raise ValueError(f"{where}: non-finite coordinates")
+    _check_coordinates(points, where)
+    _check_indices(tris, len(points), where)
     if size is not None and not (size > 0 and np.isfinite(size)):
         raise ValueError(f"size = {size}: must be positive and finite")
     # Merge duplicate points (STL stores every triangle's own corners).
@@ -180,8 +218,7 @@ def triangulate(outline: Union[PathLike, np.ndarray, Sequence], out: PathLike,
         pts = np.asarray(outline, dtype=float)
     if pts.ndim != 2 or pts.shape[1] != 2 or len(pts) < 3:
         raise ValueError(f"{where}: expected at least 3 corners with 2 coordinates each")
-    if not np.isfinite(pts).all():
-        raise ValueError(f"{where}: non-finite coordinates")
+    _check_coordinates(pts, where)
     if not (size > 0 and np.isfinite(size)):
         raise ValueError(f"size = {size}: must be positive and finite")
     if np.allclose(pts[0], pts[-1]):
@@ -241,7 +278,7 @@ def _read_outline(path: PathLike) -> np.ndarray:
     """The outline of a planar .obj: its single polygon (``f``) or closed polyline (``l``)."""
     import meshio
 
-    m = meshio.read(os.fspath(path))
+    m = _meshio_read(meshio, path)
     for block in m.cells:
         if block.type in ("line", "polygon", "triangle", "quad") and len(block.data):
             if block.type == "line":
@@ -251,6 +288,7 @@ def _read_outline(path: PathLike) -> np.ndarray:
                     raise ValueError(f"{os.fspath(path)}: expected one polygon (the outline), "
                                      f"found {len(block.data)} {block.type} cells")
                 order = [int(v) for v in block.data[0]]
+            _check_indices(np.asarray([order]), len(m.points), os.fspath(path))
             pts = np.asarray(m.points, dtype=float)[order]
             if pts.shape[1] == 3 and np.ptp(pts[:, 2]) > 1e-12 * max(np.ptp(pts), 1e-300):
                 raise ValueError(f"{os.fspath(path)}: the outline is not in a plane z = const")

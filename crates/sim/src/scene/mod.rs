@@ -133,6 +133,25 @@ fn vec_len(field: &str, v: &[f64], d: usize) -> Result<(), SimError> {
     Ok(())
 }
 
+/// The speed of light (m/s): a body or a boundary given a speed at or above it is a unit
+/// mix-up, not a scene (a velocity of 1e30 m/s failed the first step with no field named).
+pub const SPEED_OF_LIGHT: f64 = 299_792_458.0;
+
+/// A velocity: `d` finite components, slower than light.
+fn velocity(field: &str, v: &[f64], d: usize) -> Result<(), SimError> {
+    vec_len(field, v, d)?;
+    let speed = v.iter().map(|x| x * x).sum::<f64>().sqrt();
+    if !(speed < SPEED_OF_LIGHT) {
+        return Err(invalid(
+            field,
+            format!(
+                "a speed of {speed:.3e} m/s is not below the speed of light ({SPEED_OF_LIGHT:.3e} m/s): check the units"
+            ),
+        ));
+    }
+    Ok(())
+}
+
 fn positive(field: &str, x: f64) -> Result<(), SimError> {
     if x > 0.0 && x.is_finite() {
         Ok(())
@@ -208,7 +227,7 @@ fn motion(field: &str, segs: &[MotionSegment], d: usize) -> Result<(), SimError>
         }
         last = s.until;
         if let Some(v) = &s.velocity {
-            vec_len(&format!("{f}.velocity"), v, d)?;
+            velocity(&format!("{f}.velocity"), v, d)?;
         }
         if let Some(w) = &s.angular_velocity {
             angular(&format!("{f}.angular_velocity"), w, d)?;
@@ -372,6 +391,16 @@ pub fn validate(s: &SceneSpec) -> Result<(), SimError> {
     }
     positive("time.dt", s.time.dt)?;
     positive("time.duration", s.time.duration)?;
+    if s.time.dt > s.time.duration {
+        return Err(invalid(
+            "time.dt",
+            format!(
+                "{:e} is longer than time.duration ({:e}): the one step would end past the run's end; \
+                 use a Δt no longer than the duration",
+                s.time.dt, s.time.duration
+            ),
+        ));
+    }
     if let Some(f) = s.time.frame_interval {
         positive("time.frame_interval", f)?;
     }
@@ -454,7 +483,7 @@ pub fn validate(s: &SceneSpec) -> Result<(), SimError> {
                 any_mpm = true;
                 material(&format!("{f}.material"), m)?;
                 if let Some(v) = velocity {
-                    vec_len(&format!("{f}.velocity"), v, d)?;
+                    self::velocity(&format!("{f}.velocity"), v, d)?;
                 }
                 if let Some(w) = angular_velocity {
                     angular(&format!("{f}.angular_velocity"), w, d)?;
@@ -514,7 +543,7 @@ pub fn validate(s: &SceneSpec) -> Result<(), SimError> {
                         vec_len(&format!("{sf}.center"), center, d)?;
                         radii(&sf, *r_in, *r_out)?;
                     }
-                    ShapeSpec::Mesh { file } => {
+                    ShapeSpec::Mesh { file, .. } => {
                         if file.is_empty() {
                             return Err(invalid(format!("{sf}.file"), "must name a mesh file"));
                         }
@@ -533,7 +562,7 @@ pub fn validate(s: &SceneSpec) -> Result<(), SimError> {
                 n_fem += 1;
                 material(&format!("{f}.material"), m)?;
                 if let Some(v) = velocity {
-                    vec_len(&format!("{f}.velocity"), v, d)?;
+                    self::velocity(&format!("{f}.velocity"), v, d)?;
                 }
                 if let Some(w) = angular_velocity {
                     angular(&format!("{f}.angular_velocity"), w, d)?;
@@ -613,7 +642,7 @@ pub fn validate(s: &SceneSpec) -> Result<(), SimError> {
                         }
                         cells(&format!("{mf}.cells"), c, 2)?;
                     }
-                    MeshSpec::File { path } => {
+                    MeshSpec::File { path, .. } => {
                         if path.is_empty() {
                             return Err(invalid(format!("{mf}.path"), "must name a mesh file"));
                         }

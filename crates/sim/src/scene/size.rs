@@ -240,10 +240,10 @@ fn mpm_counts(
             let surf = pi * (r_in + r_out) + 2.0 * (r_out - r_in);
             (vol / (s * s), around(vol, surf))
         }
-        ShapeSpec::Mesh { file } => {
+        ShapeSpec::Mesh { file, reorient } => {
             let (vol, lo, hi) = match d {
-                2 => mesh_extent::<2>(base_dir, file, field)?,
-                _ => mesh_extent::<3>(base_dir, file, field)?,
+                2 => mesh_extent::<2>(base_dir, file, *reorient, field)?,
+                _ => mesh_extent::<3>(base_dir, file, *reorient, field)?,
             };
             let nodes = lo.iter().zip(&hi).map(|(a, b)| (b - a) / h + 3.0).product();
             (vol / s.powi(df), nodes)
@@ -254,13 +254,17 @@ fn mpm_counts(
 fn mesh_extent<const D: usize>(
     base_dir: &Path,
     file: &str,
+    reorient: bool,
     field: &str,
 ) -> Result<(f64, Vec<f64>, Vec<f64>), SimError> {
-    let mesh: Mesh<D> =
-        femp_fem::mesh::gmsh::read_msh(&base_dir.join(file)).map_err(|e| SimError::Build {
-            context: format!("{field}.file"),
-            message: e.to_string(),
-        })?;
+    let mesh: Mesh<D> = femp_fem::mesh::gmsh::read_msh_with(
+        &base_dir.join(file),
+        femp_fem::mesh::gmsh::ReadOptions { reorient },
+    )
+    .map_err(|e| SimError::Build {
+        context: format!("{field}.file"),
+        message: e.to_string(),
+    })?;
     let (lo, hi) = mesh.bounding_box();
     Ok((
         mesh.volume(),

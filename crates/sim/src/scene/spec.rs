@@ -287,6 +287,10 @@ pub struct MpmSpec {
     pub flip_ratio: f64,
 }
 
+fn is_false(b: &bool) -> bool {
+    !*b
+}
+
 fn one() -> f64 {
     1.0
 }
@@ -535,6 +539,10 @@ pub enum ShapeSpec {
     Mesh {
         /// Gmsh file.
         file: String,
+        /// Flip every cell of a mesh whose cells are all inverted (else such a file is an
+        /// error; a mesh of mixed orientation is an error either way).
+        #[serde(default, skip_serializing_if = "is_false")]
+        reorient: bool,
     },
 }
 
@@ -626,6 +634,10 @@ pub enum MeshSpec {
     File {
         /// Path.
         path: String,
+        /// Flip every cell of a mesh whose cells are all inverted (else such a file is an
+        /// error; a mesh of mixed orientation is an error either way).
+        #[serde(default, skip_serializing_if = "is_false")]
+        reorient: bool,
     },
 }
 

@@ -670,3 +670,24 @@ fn the_penetration_metric_counts_crossing_boundaries() {
     assert_eq!(w.fem_crossings(), 4);
     assert_eq!(w.measure().penetrations, 4);
 }
+
+/// Values that failed the first step without naming the scene field (issue 39): a Δt of 1e300
+/// (longer than the run) and a velocity of 1e30 m/s (faster than light).
+#[test]
+fn absurd_time_steps_and_speeds_name_their_field() {
+    let mut v = base();
+    v["time"]["dt"] = json!(1e300);
+    expect_error(&v, &["time.dt", "longer than time.duration"]);
+    let mut v = base();
+    v["bodies"][0]["velocity"] = json!([0.0, -1e30]);
+    expect_error(&v, &["bodies[0].velocity", "speed of light"]);
+    let mut v = base();
+    v["bodies"][1]["prescribed"][0]["motion"] = json!([{ "until": 1.0, "velocity": [3e8, 0.0] }]);
+    expect_error(
+        &v,
+        &[
+            "bodies[1].prescribed[0].motion[0].velocity",
+            "speed of light",
+        ],
+    );
+}

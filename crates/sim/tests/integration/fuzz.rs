@@ -273,7 +273,7 @@ pub fn corrupt(bytes: &[u8], op: u32, at: u32) -> Vec<u8> {
         return b;
     }
     let i = at as usize % b.len();
-    match op % 4 {
+    match op % 5 {
         0 => b[i] ^= 1 << (at % 8),
         1 => {
             let end = b[i..]
@@ -283,6 +283,20 @@ pub fn corrupt(bytes: &[u8], op: u32, at: u32) -> Vec<u8> {
             b.splice(i..end, b"18446744073709551615".iter().copied());
         }
         2 => b.truncate(i),
+        3 => {
+            // Repeat a line: a cell or a node written twice, or a section count that no longer
+            // matches (issue 39's duplicated cells).
+            let start = b[..i]
+                .iter()
+                .rposition(|&c| c == b'\n')
+                .map_or(0, |s| s + 1);
+            let end = b[i..]
+                .iter()
+                .position(|&c| c == b'\n')
+                .map_or(b.len(), |e| i + e + 1);
+            let line: Vec<u8> = b[start..end].to_vec();
+            b.splice(end..end, line);
+        }
         _ => {
             let start = b[..i]
                 .iter()
@@ -482,6 +496,172 @@ proptest! {
         let r = exercise(&serde_json::to_string(&v).unwrap(), dir.path().to_path_buf());
         prop_assert!(r.is_ok(), "{mesh} corrupted by {ops:?}: {}", r.unwrap_err());
     }
+}
+
+/// A 2D FEM body for the geometric classes: a one-cell rectangle, or a sliver triangle
+/// (thickness `thin` of its length) written as a mesh file into `dir`.
+fn geometric_body(name: &str, kind: u32, at: [f64; 2], rot: f64, thin: f64, dir: &Path) -> Value {
+    let material = json!({ "E": 1e5, "nu": 0.3, "rho": 1 });
+    let transform = json!({ "rotate_deg": rot, "translate": at });
+    if kind % 3 == 2 {
+        // A sliver: three nearly collinear nodes (a valid triangle, relative thickness `thin`).
+        let file = dir.join(format!("{name}.msh"));
+        let text = format!(
+            "$MeshFormat\n2.2 0 8\n$EndMeshFormat\n$Nodes\n3\n1 0 0 0\n2 1 0 0\n3 0.4 {thin:e} 0\n$EndNodes\n$Elements\n1\n1 2 2 0 1 1 2 3\n$EndElements\n"
+        );
+        std::fs::write(&file, text).unwrap();
+        json!({ "kind": "fem", "name": name, "mesh": { "file": { "path": format!("{name}.msh") } },
+                "transform": transform, "material": material })
+    } else {
+        let (w, h) = if kind.is_multiple_of(3) {
+            (4.0, 0.4)
+        } else {
+            (1.0, 1.0)
+        };
+        json!({ "kind": "fem", "name": name,
+                "mesh": { "rectangle": { "min": [-w / 2.0, -h / 2.0], "max": [w / 2.0, h / 2.0], "cells": [1, 1] } },
+                "transform": transform, "material": material,
+                "velocity": [-at[0], -at[1]] })
+    }
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig {
+        cases: cases() / 4,
+        ..ProptestConfig::default()
+    })]
+
+    /// Issue 39's geometric classes: many FEM bodies (up to 200) at random places and angles —
+    /// crossing, coincident, nested or apart — bars, squares and slivers (relative thickness
+    /// 1e-12 … 1e-3), in BFEMP (with an MPM disk among them) and augury scenes: refused with an
+    /// error or stepped, never a panic or a hang.
+    #[test]
+    fn crossing_coincident_many_and_sliver_bodies_never_panic_or_hang(
+        augury in any::<bool>(),
+        bodies in prop::collection::vec(
+            (any::<u32>(), -3.0f64..3.0, -3.0f64..3.0, 0.0f64..360.0, 3u32..13), 1..200),
+        snap in any::<bool>(),
+    ) {
+        let dir = tempfile::tempdir().unwrap();
+        let list: Vec<Value> = bodies
+            .iter()
+            .enumerate()
+            .map(|(k, &(kind, x, y, rot, thin))| {
+                // Snapped: positions and angles on a coarse lattice, so bodies coincide exactly.
+                let (x, y, rot) = if snap { (x.round(), y.round(), (rot / 90.0).round() * 90.0) } else { (x, y, rot) };
+                geometric_body(&format!("b{k}"), kind, [x, y], rot, 10f64.powi(-(thin as i32)), dir.path())
+            })
+            .collect();
+        let mut v = json!({ "dimension": 2, "time": { "dt": 1e-3, "duration": 2e-3 }, "bodies": list });
+        if augury {
+            v["method"] = json!("augury");
+        } else {
+            v["mpm"] = json!({ "grid_spacing": 0.1 });
+            v["bodies"].as_array_mut().unwrap().push(json!({
+                "kind": "mpm", "name": "ball", "shape": { "disk": { "center": [0, 9], "radius": 0.3 } },
+                "material": { "E": 1e5, "nu": 0.3, "rho": 1 }, "velocity": [0, -100] }));
+            v["contact"] = json!({ "dhat": 1e-3, "kappa": 1e5 });
+        }
+        let r = exercise(&serde_json::to_string(&v).unwrap(), dir.path().to_path_buf());
+        prop_assert!(r.is_ok(), "{} bodies (augury {augury}): {}", bodies.len(), r.unwrap_err());
+    }
+
+    /// Symbolic links planted among a run's output names (to a file outside, or a directory):
+    /// the run is refused or completes, and nothing outside `--out` is ever written.
+    #[test]
+    fn links_planted_in_the_output_directory_are_never_written_through(
+        names in prop::collection::vec(0usize..8, 1..4),
+        overwrite in any::<bool>(),
+    ) {
+        const NAMES: [&str; 8] = ["metrics.csv", "summary.json", "summary.json.tmp",
+            "scene_copy.json", "plate.pvd", "frames", "frames/plate_000000.vtu", ".femp.lock"];
+        let dir = tempfile::tempdir().unwrap();
+        let outside = dir.path().join("outside");
+        std::fs::create_dir_all(&outside).unwrap();
+        std::fs::write(outside.join("f"), "keep").unwrap();
+        let out = dir.path().join("out");
+        std::fs::create_dir_all(out.join("frames")).unwrap();
+        for &k in &names {
+            let p = out.join(NAMES[k]);
+            if NAMES[k] == "frames" {
+                if !p.is_symlink() {
+                    let _ = std::fs::remove_dir_all(&p);
+                    std::os::unix::fs::symlink(&outside, &p).unwrap();
+                }
+            } else if p.symlink_metadata().is_err() && p.parent().is_some_and(|d| !d.is_symlink()) {
+                let _ = std::os::unix::fs::symlink(outside.join("f"), &p);
+            }
+        }
+        let s = scene::parse(&crate::trust::block(0.02).to_string(), "b.json", ".".into(), "b").unwrap();
+        let r = femp::run::run(s, &out, &femp::run::RunOptions { overwrite, ..Default::default() });
+        prop_assert!(matches!(r, Err(SimError::OutputLink { .. })), "{:?}", r.map(|r| r.summary.status));
+        prop_assert_eq!(std::fs::read_to_string(outside.join("f")).unwrap(), "keep");
+        prop_assert_eq!(std::fs::read_dir(&outside).unwrap().count(), 1);
+    }
+}
+
+/// File-size limits from 1 KiB to 64 KiB (SIGXFSZ, no `trap` in the shell: femp ignores it):
+/// every run ends with a final summary — `completed` or `failed` — and no temporary file; below
+/// the summary's own size (about 2 KiB) the run says so on stderr and exits 1 with nothing to
+/// record it in.
+#[test]
+fn file_size_limits_end_every_run_with_a_final_summary() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = dir.path().join("b.json");
+    std::fs::write(&scene, crate::trust::block(0.3).to_string()).unwrap();
+    for kib in [1u64, 2, 3, 4, 8, 16, 64] {
+        let out = dir.path().join(format!("out{kib}"));
+        let r = std::process::Command::new("bash")
+            .arg("-c")
+            .arg(format!("ulimit -f {kib}; exec \"$0\" \"$@\""))
+            .arg(env!("CARGO_BIN_EXE_femp"))
+            .args([
+                "run",
+                scene.to_str().unwrap(),
+                "--out",
+                out.to_str().unwrap(),
+                "-q",
+            ])
+            .output()
+            .unwrap();
+        let text = std::fs::read_to_string(out.join("summary.json")).unwrap_or_default();
+        let s: Value = serde_json::from_str(&text).unwrap_or(Value::Null);
+        let status = s["status"].as_str().unwrap_or("none");
+        let stderr = String::from_utf8_lossy(&r.stderr);
+        if status == "none" && kib < 4 {
+            assert!(
+                stderr.contains("summary.json: File too large") && r.status.code() == Some(1),
+                "{kib} KiB: {stderr}"
+            );
+            continue;
+        }
+        assert!(
+            status == "completed" || status == "failed",
+            "{kib} KiB: status {status}, exit {:?}: {}",
+            r.status,
+            String::from_utf8_lossy(&r.stderr)
+        );
+        let tmp: Vec<PathBuf> = walk(&out)
+            .into_iter()
+            .filter(|p| p.to_string_lossy().ends_with(".tmp"))
+            .collect();
+        assert!(tmp.is_empty(), "{kib} KiB: {tmp:?}");
+    }
+}
+
+fn walk(d: &Path) -> Vec<PathBuf> {
+    let mut out = Vec::new();
+    if let Ok(rd) = std::fs::read_dir(d) {
+        for e in rd.flatten() {
+            let p = e.path();
+            if p.is_dir() {
+                out.extend(walk(&p));
+            } else {
+                out.push(p);
+            }
+        }
+    }
+    out
 }
 
 #[test]

@@ -582,3 +582,124 @@ fn any_number_of_threads_gives_the_same_bits() {
         assert!(one.0 == other.0, "states differ on {threads} threads");
     }
 }
+
+/// What left a run's summary at `running` (issue 39) now ends it with a final status: a
+/// file-size limit (SIGXFSZ, which killed femp mid-write and left a `.vtu.tmp`), two signals
+/// 50 ms apart (the second stops femp at once), and a signal while large pictures are drawn
+/// (which were drawn to the end first, and left a GIF header alone).
+#[test]
+fn every_catchable_end_leaves_a_final_summary_and_no_temporaries() {
+    let dir = tempfile::tempdir().unwrap();
+    let p = scene_file(dir.path(), "b.json", &block(3.0));
+    // A file-size limit without `trap '' XFSZ`: femp ignores the signal itself.
+    let out = dir.path().join("xfsz");
+    let r = Command::new("bash")
+        .arg("-c")
+        .arg("ulimit -f 4; exec \"$0\" \"$@\"")
+        .arg(env!("CARGO_BIN_EXE_femp"))
+        .args(["run", &p, "--out", out.to_str().unwrap(), "-q"])
+        .output()
+        .unwrap();
+    assert_eq!(
+        r.status.code(),
+        Some(1),
+        "{}",
+        String::from_utf8_lossy(&r.stderr)
+    );
+    let s = summary(&out);
+    assert_eq!(s["status"], "failed", "{s}");
+    assert!(s["error"].as_str().unwrap().contains("too large"), "{s}");
+    let tmp: Vec<PathBuf> = std::fs::read_dir(out.join("frames"))
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .chain(std::fs::read_dir(&out).unwrap().map(|e| e.unwrap().path()))
+        .filter(|p| p.to_string_lossy().ends_with(".tmp"))
+        .collect();
+    assert!(tmp.is_empty(), "{tmp:?}");
+
+    // Two SIGTERMs 50 ms apart.
+    let long = scene_file(dir.path(), "long.json", &block(1000.0));
+    let out = dir.path().join("twice");
+    let mut child = femp()
+        .args([
+            "run",
+            &long,
+            "--out",
+            out.to_str().unwrap(),
+            "--no-frames",
+            "-q",
+        ])
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    assert!(wait_for(60, || rows_so_far(&out) >= 5), "no progress");
+    signal(&child, "TERM");
+    std::thread::sleep(Duration::from_millis(50));
+    signal(&child, "TERM");
+    assert_eq!(wait_exit(&mut child, 60).code(), Some(130));
+    let s = summary(&out);
+    assert_eq!(s["status"], "interrupted", "{s}");
+
+    // A signal while large pictures are drawn: the run stops before drawing the next, and an
+    // animation without a frame is not left behind.
+    let out = dir.path().join("pictures");
+    let mut child = femp()
+        .args([
+            "run",
+            &long,
+            "--out",
+            out.to_str().unwrap(),
+            "--no-frames",
+            "-q",
+            "--pictures",
+            "--picture-size",
+            "4096x4096",
+            "--key-frames",
+            "1000",
+            "--gif-frames",
+            "10000",
+        ])
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    assert!(wait_for(120, || rows_so_far(&out) >= 1), "no progress");
+    signal(&child, "TERM");
+    assert_eq!(wait_exit(&mut child, 120).code(), Some(130));
+    let s = summary(&out);
+    assert_eq!(s["status"], "interrupted", "{s}");
+    let gif = out.join("pictures/animation.gif");
+    if let Ok(m) = std::fs::metadata(&gif) {
+        assert!(m.len() > 1000, "a GIF of {} bytes: no frame", m.len());
+    }
+}
+
+/// A symbolic link planted in `--out` is not written through (issue 39): a `metrics.csv`
+/// pointing outside, or a `frames/` directory link, refuses the run — with or without
+/// `--overwrite` — and the file outside is untouched.
+#[test]
+fn writes_do_not_follow_links_planted_in_the_output_directory() {
+    let dir = tempfile::tempdir().unwrap();
+    let p = scene_file(dir.path(), "b.json", &block(0.05));
+    let outside = dir.path().join("outside.txt");
+    std::fs::write(&outside, "keep me").unwrap();
+    let out = dir.path().join("out");
+    std::fs::create_dir_all(&out).unwrap();
+    std::os::unix::fs::symlink(&outside, out.join("metrics.csv")).unwrap();
+    for extra in [&[][..], &["--overwrite"][..]] {
+        let mut args = vec!["run", &p, "--out", out.to_str().unwrap(), "-q"];
+        args.extend_from_slice(extra);
+        let r = run_femp(&args);
+        assert_eq!(r.status.code(), Some(1));
+        let e = String::from_utf8_lossy(&r.stderr);
+        assert!(e.contains("metrics.csv: a symbolic link"), "{e}");
+        assert_eq!(std::fs::read_to_string(&outside).unwrap(), "keep me");
+    }
+    std::fs::remove_file(out.join("metrics.csv")).unwrap();
+    let elsewhere = dir.path().join("elsewhere");
+    std::fs::create_dir_all(&elsewhere).unwrap();
+    std::os::unix::fs::symlink(&elsewhere, out.join("frames")).unwrap();
+    let r = run_femp(&["run", &p, "--out", out.to_str().unwrap(), "-q"]);
+    assert_eq!(r.status.code(), Some(1));
+    assert!(String::from_utf8_lossy(&r.stderr).contains("frames: a symbolic link"));
+    assert_eq!(std::fs::read_dir(&elsewhere).unwrap().count(), 0);
+}
