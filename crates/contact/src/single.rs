@@ -81,6 +81,19 @@ fn chain<const D: usize>(
 /// triangle's plane computes `d ≈ 1e-17`, not 0): they are reported as penetrations.
 pub const ROUND_OFF: f64 = 16.0 * f64::EPSILON;
 
+/// The first stencil point (0: the point, 1…: the primitive's vertices) with a non-finite
+/// coordinate, as the error naming it — every one is checked, not only those the distance
+/// happens to use (a NaN vertex away from the closest feature used to pass unseen).
+fn finite_stencil<const D: usize>(pts: &[&SVector<f64, D>]) -> Result<(), ContactError> {
+    match pts.iter().position(|p| p.iter().any(|x| !x.is_finite())) {
+        Some(index) => Err(ContactError::NonFinite {
+            what: "stencil point (0: the point, 1…: the primitive's vertices)",
+            index,
+        }),
+        None => Ok(()),
+    }
+}
+
 fn check(barrier: &LogBarrier, weight: f64, d: f64, size: f64) -> Result<Option<()>, ContactError> {
     if !(weight >= 0.0 && weight.is_finite()) {
         return Err(ContactError::BadParameter {
@@ -117,6 +130,7 @@ pub fn point_edge<const D: usize>(
     e1: &SVector<f64, D>,
     hessian: Hessian,
 ) -> Result<Option<Contact<D, 3>>, ContactError> {
+    finite_stencil(&[p, e0, e1])?;
     let s = point_edge::sq_dist(p, e0, e1);
     let size = (e0 - p).norm().max((e1 - p).norm());
     if check(barrier, weight, s.sqrt(), size)?.is_none() {
@@ -149,6 +163,7 @@ pub fn point_triangle(
     t2: &Vector3<f64>,
     hessian: Hessian,
 ) -> Result<Option<Contact<3, 4>>, ContactError> {
+    finite_stencil(&[p, t0, t1, t2])?;
     let s = point_triangle::sq_dist(p, t0, t1, t2);
     let size = (t0 - p).norm().max((t1 - p).norm()).max((t2 - p).norm());
     if check(barrier, weight, s.sqrt(), size)?.is_none() {

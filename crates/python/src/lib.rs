@@ -681,8 +681,18 @@ fn ccd_toi(
             b.shape()
         )));
     }
-    if a.iter().chain(b.iter()).any(|v| !v.is_finite()) {
-        return Err(PyValueError::new_err("start/end: non-finite coordinate"));
+    for (name, m) in [("start", &a), ("end", &b)] {
+        if let Some(row) = (0..m.nrows()).find(|&i| m.row(i).iter().any(|v| !v.is_finite())) {
+            let what = if row == 0 {
+                "the point".to_string()
+            } else {
+                format!("vertex {} of the primitive", row - 1)
+            };
+            return Err(PyValueError::new_err(format!(
+                "{name}[{row}] ({what}): non-finite coordinate {:?}",
+                m.row(row).to_vec()
+            )));
+        }
     }
     let opts = CcdOptions {
         max_iterations: max_iterations.max(1),

@@ -84,3 +84,27 @@ def test_ccd_is_conservative_and_tight():
     assert toi is not None and 0.499 < toi <= 0.5
     with pytest.raises(ValueError, match="shape"):
         contact.ccd(np.zeros((5, 3)), np.zeros((5, 3)))
+
+
+def test_ccd_degenerate_and_non_finite_inputs():
+    """Issue 39: a triangle with two coincident vertices is an edge (no false contact at t = 0),
+    coordinates of 1e300 do not overflow, and a NaN anywhere names its row."""
+    # t0 = t1: the point passes 0.5 beside the degenerate triangle — no contact.
+    s = np.array([[0.0, 0.5, 1.0], [0, 0, 0], [0, 0, 0], [1, 0, 0]], dtype=float)
+    e = s + [[0, 0, -2], [0, 0, 0], [0, 0, 0], [0, 0, 0]]
+    assert contact.ccd(s, e) is None
+    # ... and through its edge: contact at t = 0.5.
+    s[0] = [0.5, 0.0, 1.0]
+    e = s + [[0, 0, -2], [0, 0, 0], [0, 0, 0], [0, 0, 0]]
+    toi = contact.ccd(s, e)
+    assert toi is not None and 0.499 < toi <= 0.5
+    # Far apart at 1e300: no contact, no overflow into a false one.
+    big = np.array([[0.0, 1e300, 0.0], [-1e300, -1e300, 0], [1e300, -1e300, 0], [0, -1e300, 1e300]])
+    assert contact.ccd(big, big + [[0, 1e299, 0], [0, 0, 0], [0, 0, 0], [0, 0, 0]]) is None
+    # NaN in a triangle vertex: named by its row, not "the point".
+    bad = s.copy()
+    bad[2, 1] = np.nan
+    with pytest.raises(ValueError, match=r"start\[2\] \(vertex 1 of the primitive\)"):
+        contact.ccd(bad, s)
+    with pytest.raises(ValueError, match=r"end\[0\] \(the point\)"):
+        contact.ccd(s, np.where(np.arange(12).reshape(4, 3) == 0, np.inf, s))

@@ -164,10 +164,15 @@ struct Tally {
     false_negatives: Vec<String>,
     late: Vec<String>,
     false_positives: usize,
+    /// Misses (exact smallest distance > 0) reported as a contact at t = 0.
+    at_zero: Vec<String>,
 }
 
 impl Tally {
-    fn add(&mut self, what: String, hit: bool, exact_toi: f64, got: Option<f64>) {
+    fn add(&mut self, what: String, hit: bool, exact_toi: f64, min_sq: f64, got: Option<f64>) {
+        if !hit && min_sq > 0.0 && got == Some(0.0) {
+            self.at_zero.push(what.clone());
+        }
         match (hit, got) {
             (true, None) => self.false_negatives.push(what),
             (true, Some(t)) if t > exact_toi => {
@@ -200,6 +205,11 @@ impl Tally {
             self.false_negatives
         );
         assert!(self.late.is_empty(), "{name}: late {:?}", self.late);
+        assert!(
+            self.at_zero.is_empty(),
+            "{name}: contact at t = 0 for pairs apart: {:?}",
+            self.at_zero
+        );
     }
 }
 
@@ -210,7 +220,7 @@ fn ccd_catches_every_crossing_of_slivers_and_needles_never_late() {
     for (k, (fam, x)) in rows("ccd_point_triangle.txt").iter().enumerate() {
         let (p0, p1) = (v3(&x[0..]), v3(&x[3..]));
         let (t0, t1, t2, v) = (v3(&x[6..]), v3(&x[9..]), v3(&x[12..]), v3(&x[15..]));
-        let (hit, toi) = (x[18] == 1.0, x[19]);
+        let (hit, toi, min_sq) = (x[18] == 1.0, x[19], x[20]);
         let r = ccd::point_triangle(
             &p0,
             &t0,
@@ -222,7 +232,7 @@ fn ccd_catches_every_crossing_of_slivers_and_needles_never_late() {
             &(t2 + v),
             &opts,
         );
-        tally.add(format!("case {k} ({fam})"), hit, toi, r.toi);
+        tally.add(format!("case {k} ({fam})"), hit, toi, min_sq, r.toi);
     }
     tally.check("point–triangle CCD");
 }
@@ -234,9 +244,56 @@ fn ccd_2d_catches_every_crossing_of_needle_and_coincident_edges_never_late() {
     for (k, (fam, x)) in rows("ccd_point_edge_2d.txt").iter().enumerate() {
         let f = |i: usize| SVector::<f64, 2>::new(x[i], x[i + 1]);
         let (p0, p1, e0, e1, v) = (f(0), f(2), f(4), f(6), f(8));
-        let (hit, toi) = (x[10] == 1.0, x[11]);
+        let (hit, toi, min_sq) = (x[10] == 1.0, x[11], x[12]);
         let r = ccd::point_edge(&p0, &e0, &e1, &p1, &(e0 + v), &(e1 + v), &opts);
-        tally.add(format!("case {k} ({fam})"), hit, toi, r.toi);
+        tally.add(format!("case {k} ({fam})"), hit, toi, min_sq, r.toi);
     }
     tally.check("point–edge CCD (2D)");
+}
+
+/// Degenerate and huge queries get a defined answer: a triangle with coincident vertices is its
+/// edge (a point passing beside it: no contact at all, never a time of impact of 0), and
+/// coordinates of 1e300 are scaled rather than overflowing into a false contact.
+#[test]
+fn ccd_of_degenerate_and_huge_triangles_is_not_a_false_contact_at_zero() {
+    let opts = CcdOptions::default();
+    let z = Vector3::zeros();
+    let (a, b) = (Vector3::new(0.0, 0.0, 0.0), Vector3::new(1.0, 0.0, 0.0));
+    // t0 = t1 (an edge), t0 = t1 = t2 (a point): beside them, no contact.
+    for (t0, t1, t2) in [(a, a, b), (a, b, b), (b, a, a), (a, a, a)] {
+        let (p0, p1) = (Vector3::new(0.3, 0.5, 1.0), Vector3::new(0.3, 0.5, -1.0));
+        let r = ccd::point_triangle(
+            &p0,
+            &t0,
+            &t1,
+            &t2,
+            &p1,
+            &(t0 + z),
+            &(t1 + z),
+            &(t2 + z),
+            &opts,
+        );
+        assert_eq!(r.toi, None, "{t0:?} {t1:?} {t2:?}");
+    }
+    // Through the degenerate triangle's edge: contact, at its exact time or before.
+    let (p0, p1) = (Vector3::new(0.5, 0.0, 1.0), Vector3::new(0.5, 0.0, -1.0));
+    let r = ccd::point_triangle(&p0, &a, &a, &b, &p1, &a, &a, &b, &opts);
+    assert!(r.toi.is_some_and(|t| t <= 0.5 && t > 0.49), "{r:?}");
+    // 1e300: far apart, moving a little.
+    let s = 1e300;
+    let (t0, t1, t2) = (
+        Vector3::new(-s, -s, 0.0),
+        Vector3::new(s, -s, 0.0),
+        Vector3::new(0.0, -s, s),
+    );
+    let (p0, p1) = (Vector3::new(0.0, s, 0.0), Vector3::new(0.0, 1.1 * s, 0.0));
+    let r = ccd::point_triangle(&p0, &t0, &t1, &t2, &p1, &t0, &t1, &t2, &opts);
+    assert_eq!(r.toi, None, "{r:?}");
+    // ... and crossing at that scale is still found.
+    let (p0, p1) = (
+        Vector3::new(0.0, -0.9 * s, 0.1 * s),
+        Vector3::new(0.0, -1.1 * s, 0.1 * s),
+    );
+    let r = ccd::point_triangle(&p0, &t0, &t1, &t2, &p1, &t0, &t1, &t2, &opts);
+    assert!(r.toi.is_some_and(|t| t <= 0.5), "{r:?}");
 }

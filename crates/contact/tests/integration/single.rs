@@ -175,8 +175,34 @@ fn no_contact_at_or_beyond_dhat_and_clear_errors() {
     let nan = Vector2::new(f64::NAN, 0.1);
     assert!(matches!(
         single::point_edge(&b, 1.0, &nan, &e0, &e1, Hessian::Exact),
-        Err(ContactError::NonFinite { .. })
+        Err(ContactError::NonFinite { index: 0, .. })
     ));
+    // A NaN in a primitive's vertex is named too (the distance to a triangle need not use
+    // that vertex: it passed unseen), with its stencil index.
+    assert!(matches!(
+        single::point_edge(&b, 1.0, &Vector2::new(0.5, 0.1), &e0, &nan, Hessian::Exact),
+        Err(ContactError::NonFinite { index: 2, .. })
+    ));
+    let t = [
+        Vector3::zeros(),
+        Vector3::x(),
+        Vector3::new(f64::NAN, 5.0, 0.0),
+    ];
+    let e = single::point_triangle(
+        &b,
+        1.0,
+        &Vector3::new(0.1, 0.0, 0.1),
+        &t[0],
+        &t[1],
+        &t[2],
+        Hessian::Exact,
+    )
+    .unwrap_err();
+    assert!(matches!(e, ContactError::NonFinite { index: 3, .. }), "{e}");
+    assert!(
+        e.to_string().contains("stencil point") && e.to_string().contains(" 3 "),
+        "{e}"
+    );
     let p = Vector2::new(0.5, 0.1);
     for w in [-1.0, f64::INFINITY, f64::NAN] {
         let e = single::point_edge(&b, w, &p, &e0, &e1, Hessian::Exact).unwrap_err();
