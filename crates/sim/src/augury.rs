@@ -75,6 +75,7 @@ impl<const D: usize> AuguryState<D> {
             contact: AuguryContactSpec::Augury,
             penalty: None,
             obstacles: AuguryObstaclesSpec::Lumped,
+            penetration_limit: Some(0.5),
         };
         let a = spec.augury.as_ref().unwrap_or(&default);
         let dt = spec.time.dt;
@@ -195,25 +196,7 @@ impl<const D: usize> AuguryState<D> {
             apic,
             pairs,
         };
-        // Bodies may start touching (a block resting on a ramp) but not overlapping.
-        for &(i, j) in &state.pairs {
-            let (n, deepest) = state.penetrations(fem, i, j, true);
-            if n > 0 {
-                let (k, depth) = deepest.expect("a deepest point when n > 0");
-                let p = fem[i].x[fem[i].boundary.vertices()[k]];
-                return Err(SimError::Overlap {
-                    a: fem[i].name.clone(),
-                    b: fem[j].name.clone(),
-                    detail: format!(
-                        "{n} boundary vertex(es) of `{}` lie inside `{}`; the deepest, vertex {} at {:?}, is {depth:.3e} m inside",
-                        fem[i].name,
-                        fem[j].name,
-                        fem[i].boundary.vertices()[k],
-                        p.as_slice()
-                    ),
-                });
-            }
-        }
+        // Bodies starting overlapping were refused by `World::build` (check_augury_overlaps).
         Ok(state)
     }
 
@@ -263,14 +246,31 @@ impl<const D: usize> AuguryState<D> {
         (n, worst)
     }
 
-    /// Penetrating boundary vertices over all pairs, and the smallest distance between a
-    /// boundary vertex and another body's boundary within one grid spacing (∞ if none).
-    pub(crate) fn contact_metrics(&self, fem: &[FemBody<D>]) -> (usize, f64) {
+    /// Penetrating boundary vertices over the pairs of bodies whose boxes overlap, the smallest
+    /// distance between a boundary vertex and another body's boundary within one grid spacing
+    /// (∞ if none), and the deepest penetrating vertex.
+    pub(crate) fn contact_metrics(
+        &self,
+        fem: &[FemBody<D>],
+    ) -> (usize, f64, Option<crate::metrics::Penetration>) {
         let mut n = 0;
         let mut min_d = f64::INFINITY;
+        let mut worst: Option<crate::metrics::Penetration> = None;
         let mut c = femp_contact::broad_phase::Candidates::default();
-        for &(i, j) in &self.pairs {
-            n += self.penetrations(fem, i, j, false).0;
+        for (i, j) in self.near_pairs(fem, self.grid_spacing) {
+            let (k, deepest) = self.penetrations(fem, i, j, true);
+            n += k;
+            if let Some((slot, depth)) = deepest
+                && worst.as_ref().is_none_or(|w| depth > w.depth)
+            {
+                worst = Some(crate::metrics::Penetration {
+                    points_of: fem[i].name.clone(),
+                    point: fem[i].boundary.vertices()[slot],
+                    body: fem[j].name.clone(),
+                    depth,
+                    edge: fem[j].mean_edge(),
+                });
+            }
             let (a, b) = (&fem[i], &fem[j]);
             let pts: Vec<SVector<f64, D>> = a.boundary.vertices().iter().map(|&v| a.x[v]).collect();
             femp_contact::broad_phase::candidates_within(
@@ -286,7 +286,32 @@ impl<const D: usize> AuguryState<D> {
                 }
             }
         }
-        (n, min_d)
+        (n, min_d, worst)
+    }
+
+    /// The ordered pairs of [`Self::pairs`] whose bodies' boxes, grown by `margin`, overlap
+    /// (sorted and swept: about `n log n` for many bodies apart).
+    fn near_pairs(&self, fem: &[FemBody<D>], margin: f64) -> Vec<(usize, usize)> {
+        let grown: Vec<Vec<SVector<f64, D>>> = fem
+            .iter()
+            .map(|b| {
+                let Some(first) = b.x.first() else {
+                    return Vec::new();
+                };
+                let (lo, hi) =
+                    b.x.iter()
+                        .fold((*first, *first), |(l, h), v| (l.inf(v), h.sup(v)));
+                vec![lo.add_scalar(-margin), hi.add_scalar(margin)]
+            })
+            .collect();
+        let xs: Vec<&[SVector<f64, D>]> = grown.iter().map(|v| &v[..]).collect();
+        let near: std::collections::HashSet<(usize, usize)> =
+            crate::overlap::box_pairs(&xs).into_iter().collect();
+        self.pairs
+            .iter()
+            .copied()
+            .filter(|&(i, j)| near.contains(&(i.min(j), i.max(j))))
+            .collect()
     }
 
     /// The APIC term `Σ m_p ε : B_pᵀ` of the boundary particles' angular momentum.

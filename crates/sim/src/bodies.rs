@@ -140,6 +140,18 @@ pub struct FemBody<const D: usize> {
 }
 
 impl<const D: usize> FemBody<D> {
+    /// The mean length of the body's boundary edges at its current positions.
+    pub fn mean_edge(&self) -> f64 {
+        if self.edges.is_empty() {
+            return 0.0;
+        }
+        self.edges
+            .iter()
+            .map(|e| (self.x[e[0] as usize] - self.x[e[1] as usize]).norm())
+            .sum::<f64>()
+            / self.edges.len() as f64
+    }
+
     /// The body's centre of mass and the velocity of it (mass-weighted means of the vertices'
     /// positions and velocities, lumped masses).
     pub fn centre_of_mass(&self) -> (SVector<f64, D>, SVector<f64, D>) {
@@ -230,6 +242,15 @@ impl<const D: usize> LevelSet<D> {
     pub fn velocity(&self, t: f64) -> SVector<f64, D> {
         self.motion.velocity(t, &SVector::zeros())
     }
+}
+
+/// How far a point inside `body` is from its boundary (the smallest distance to a boundary
+/// facet; every facet is tried — for the few points found inside).
+pub(crate) fn depth_inside<const D: usize>(p: &SVector<f64, D>, body: &FemBody<D>) -> f64 {
+    body.facets
+        .iter()
+        .map(|f| point_facet_distance(p, f, &body.x))
+        .fold(f64::INFINITY, f64::min)
 }
 
 /// Distance from `p` to a boundary facet (an edge in 2D, a triangle in 3D).

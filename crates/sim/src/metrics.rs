@@ -37,6 +37,11 @@ pub struct Metrics {
     /// Points inside or on another body, plus boundary edges of a FEM body crossing another's
     /// boundary facets (bodies can cross with no vertex inside; independent of the solver).
     pub penetrations: usize,
+    /// How deep the deepest point inside another body is (m; 0 if none): its distance to that
+    /// body's boundary.
+    pub penetration_depth: f64,
+    /// The deepest point inside another body, if any.
+    pub deepest: Option<Penetration>,
     /// Points whose straight path over the step (from the last row's position to this one's)
     /// went inside a body they can touch — what `penetrations`, an end-of-step count, cannot
     /// see ([`crate::sweep`]; 0 in the first row).
@@ -79,6 +84,41 @@ pub struct Metrics {
     pub friction_forces: Vec<[f64; 3]>,
 }
 
+/// A point inside another body (for [`Metrics::deepest`]).
+#[derive(Clone, Debug, PartialEq)]
+pub struct Penetration {
+    /// The point's body (an MPM body, or a FEM body for its boundary vertices).
+    pub points_of: String,
+    /// The point: particle index (MPM) or vertex index (FEM).
+    pub point: usize,
+    /// The body it is inside.
+    pub body: String,
+    /// Its distance to that body's boundary (m).
+    pub depth: f64,
+    /// That body's mean boundary edge length (m), the scale of "deep".
+    pub edge: f64,
+}
+
+impl Penetration {
+    /// The penetration in words.
+    pub fn describe(&self) -> String {
+        format!(
+            "{} {} of `{}` is {:.3e} m inside `{}` ({:.2} of its mean boundary edge {:.3e} m)",
+            if self.points_of.is_empty() {
+                "point"
+            } else {
+                "vertex"
+            },
+            self.point,
+            self.points_of,
+            self.depth,
+            self.body,
+            self.depth / self.edge,
+            self.edge
+        )
+    }
+}
+
 /// CSV header matching [`Metrics::csv_row`] for a BFEMP scene or (`augury`) an augury one,
 /// with force columns for the bodies `forces_of` (`force_NAME_x`, … the contact force, then
 /// `friction_NAME_x`, … its friction part).
@@ -92,9 +132,9 @@ pub fn csv_header<const D: usize>(forces_of: &[&str], augury: bool) -> String {
         h.push_str(",angular_momentum");
     }
     h.push_str(if augury {
-        ",min_distance,penetrations,swept_entered,swept_depth,augury_iterations,contact_terms,wall_s"
+        ",min_distance,penetrations,penetration_depth,swept_entered,swept_depth,augury_iterations,contact_terms,wall_s"
     } else {
-        ",min_distance,penetrations,swept_entered,swept_depth,newton_iterations,friction_iterations,contact_terms,backtracks,ccd_limited,exact_hessians,reused_hessians,pcg_iterations,substeps,wall_s"
+        ",min_distance,penetrations,penetration_depth,swept_entered,swept_depth,newton_iterations,friction_iterations,contact_terms,backtracks,ccd_limited,exact_hessians,reused_hessians,pcg_iterations,substeps,wall_s"
     });
     for kind in ["force", "friction"] {
         for name in forces_of {
@@ -158,9 +198,10 @@ impl Metrics {
         }
         if self.augury {
             r.push_str(&format!(
-                ",{:.9e},{},{},{:.6e},{},{},{:.6e}",
+                ",{:.9e},{},{:.6e},{},{:.6e},{},{},{:.6e}",
                 self.min_distance,
                 self.penetrations,
+                self.penetration_depth,
                 self.swept_entered,
                 self.swept_depth,
                 self.augury_iterations,
@@ -169,9 +210,10 @@ impl Metrics {
             ));
         } else {
             r.push_str(&format!(
-                ",{:.9e},{},{},{:.6e},{},{},{},{},{},{},{},{},{},{:.6e}",
+                ",{:.9e},{},{:.6e},{},{:.6e},{},{},{},{},{},{},{},{},{},{:.6e}",
                 self.min_distance,
                 self.penetrations,
+                self.penetration_depth,
                 self.swept_entered,
                 self.swept_depth,
                 self.newton_iterations,
@@ -259,11 +301,13 @@ impl<const D: usize> World<D> {
         }
         if let Some(aug) = self.augury() {
             l += aug.spin();
-            let (n, d) = aug.contact_metrics(&self.fem);
+            let (n, d, deepest) = aug.contact_metrics(&self.fem);
             m.penetrations = n;
             m.min_distance = d;
+            m.deepest = deepest;
         }
         m.penetrations += self.fem_crossings();
+        m.penetration_depth = m.deepest.as_ref().map_or(0.0, |d| d.depth);
         m.kinetic_energy += m.affine_kinetic_energy;
         m.momentum = [p[0], p[1], p[2]];
         m.angular_momentum = [l[0], l[1], l[2]];
@@ -271,7 +315,29 @@ impl<const D: usize> World<D> {
         for pair in &self.pairs {
             let target = &self.fem[pair.facets_of];
             let (pts, w) = self.pair_points(pair);
-            m.penetrations += inside_elements(&pts, &target.mesh, &target.x).len();
+            let inside = inside_elements(&pts, &target.mesh, &target.x);
+            m.penetrations += inside.len();
+            if !inside.is_empty() {
+                let (name, index): (&str, Box<dyn Fn(usize) -> usize>) = match &pair.points {
+                    Points::Mpm { range } => (&pair.names.0, Box::new(move |k| range.0 + k)),
+                    Points::Fem { body } => {
+                        let vs = self.fem[*body].boundary.vertices();
+                        (&pair.names.0, Box::new(move |k| vs[k]))
+                    }
+                };
+                for &(k, _) in &inside {
+                    let depth = crate::bodies::depth_inside(&pts[k], target);
+                    if m.deepest.as_ref().is_none_or(|d| depth > d.depth) {
+                        m.deepest = Some(Penetration {
+                            points_of: name.to_string(),
+                            point: index(k),
+                            body: target.name.clone(),
+                            depth,
+                            edge: target.mean_edge(),
+                        });
+                    }
+                }
+            }
             let mut c = femp_contact::broad_phase::Candidates::default();
             femp_contact::broad_phase::candidates_within(
                 &pts,

@@ -80,6 +80,10 @@ pub struct Summary {
     /// Steps after which some point was inside another body (BFEMP: must be 0; augury: how
     /// often the correction let bodies overlap).
     pub penetrating_steps: usize,
+    /// The deepest any point was inside another body at the end of a step (m), and which.
+    pub max_penetration_depth: f64,
+    /// See `max_penetration_depth` (in words; `null` if no point ever was inside).
+    pub deepest_penetration: Option<String>,
     /// Steps in which a point's straight path over the step went inside a body it can touch
     /// (`swept_entered` in metrics.csv; BFEMP: 0 in every shipped scene).
     pub swept_steps: usize,
@@ -95,8 +99,9 @@ pub struct Summary {
     /// See `substepped_steps`.
     pub max_substeps: usize,
     /// The most the total energy (kinetic, elastic, barrier, gravity) rose above its initial
-    /// value at any step, as a fraction of the initial energy's scale (the larger of its
-    /// magnitude and its kinetic + elastic + barrier part); 0 if it never rose.
+    /// value at any step, as a fraction of the initial energy's scale (the largest of its
+    /// magnitude, its kinetic + elastic + barrier part, and the gravitational energy released
+    /// so far); 0 if it never rose.
     pub energy_rise: f64,
     /// The step at which `energy_rise` was reached.
     pub energy_rise_step: usize,

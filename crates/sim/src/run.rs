@@ -194,9 +194,16 @@ pub fn run_with<const D: usize>(
     summary.frames = out.frames();
     if summary.penetrating_steps > 0 {
         let w = format!(
-            "points were inside another body after {} of {} steps (at most {} at once): the \
-             contact did not keep the bodies apart; see `penetrations` in metrics.csv",
-            summary.penetrating_steps, summary.steps, summary.max_penetrations
+            "points were inside another body after {} of {} steps (at most {} at once; the \
+             deepest: {}): the contact did not keep the bodies apart; see `penetrations` and \
+             `penetration_depth` in metrics.csv",
+            summary.penetrating_steps,
+            summary.steps,
+            summary.max_penetrations,
+            summary
+                .deepest_penetration
+                .as_deref()
+                .unwrap_or("crossing boundaries, no vertex inside")
         );
         note(format_args!("[{name}] warning: {w}"));
         summary.warnings.push(w);
@@ -294,7 +301,12 @@ fn drive<const D: usize>(
     let frame_dt = world.scene.spec.time.frame_interval.unwrap_or(world.dt);
     let mut m0 = world.measure();
     let energy0 = total_energy(&m0);
-    let energy_scale = energy0
+    // The scale a rise is measured against: the initial energy's magnitude, its part in motion
+    // and deformation, or the most gravitational energy released so far (bodies may start at
+    // rest with the gravity potential's origin among them: a total of 0, where round-off
+    // would look like a gain).
+    let gravity0 = m0.gravity_energy;
+    let mut energy_scale = energy0
         .abs()
         .max(m0.kinetic_energy + m0.elastic_energy + m0.barrier_energy)
         .max(f64::MIN_POSITIVE);
@@ -377,17 +389,22 @@ fn drive<const D: usize>(
         (m.contact_forces, m.friction_forces) = world.body_forces(&report.pair_forces);
         m.wall_s = t0.elapsed().as_secs_f64();
         out.metrics_row::<D>(&m)?;
-        let rise = (total_energy(&m) - energy0) / energy_scale;
-        if rise > summary.energy_rise {
-            summary.energy_rise = rise;
+        energy_scale = energy_scale.max((m.gravity_energy - gravity0).abs());
+        if total_energy(&m) > summary.peak_energy {
             summary.energy_rise_step = world.step;
             summary.peak_energy = total_energy(&m);
         }
+        summary.energy_rise = ((summary.peak_energy - energy0) / energy_scale).max(0.0);
         summary.steps = world.step;
         summary.simulated_time = world.time;
         if !opts.no_frames && world.time + 1e-12 >= next_frame {
             out.frame(world)?;
             next_frame += frame_dt;
+        }
+        // Augury: bodies that went through each other, or too deep into each other, stop the
+        // run (`augury.penetration_limit`), after the step's row and frame are written.
+        if let Some(e) = penetration_stop(world, &m, &report) {
+            return Err(e);
         }
         // A large picture takes seconds: not after an interrupt, which ends the run at the
         // next step.
@@ -436,9 +453,56 @@ fn drive<const D: usize>(
     Ok(())
 }
 
+/// An augury step that let a boundary vertex pass through another body, or left one deeper in
+/// it than `augury.penetration_limit` of that body's mean boundary edge: the error that stops
+/// the run (`None` for BFEMP, within the limit, or with the limit `null`).
+fn penetration_stop<const D: usize>(
+    world: &World<D>,
+    m: &Metrics,
+    report: &StepReport,
+) -> Option<SimError> {
+    world.augury()?;
+    let limit = world
+        .scene
+        .spec
+        .augury
+        .as_ref()
+        .map_or(crate::scene::AugurySpec::default().penetration_limit, |a| {
+            a.penetration_limit
+        })?;
+    let fail = |message: String| SimError::StepFailed {
+        step: world.step.saturating_sub(1),
+        time: world.time - world.dt,
+        message,
+    };
+    if report.swept.tunnelled > 0 {
+        return Some(fail(format!(
+            "a boundary vertex passed through another body: {} — the augury correction let \
+             the bodies through (a smaller Δt or τ, or a finer grid, keeps them apart; \
+             `augury.penetration_limit: null` to keep going)",
+            report.swept.describe()
+        )));
+    }
+    let d = m.deepest.as_ref()?;
+    (d.depth > limit * d.edge).then(|| {
+        fail(format!(
+            "{}, deeper than augury.penetration_limit = {limit} of that edge: the augury \
+             correction let the bodies into each other (`augury.penetration_limit: null` to keep \
+             going)",
+            d.describe()
+        ))
+    })
+}
+
 /// The warning for a run whose total energy rose more than [`ENERGY_RISE_WARNING`] above its
 /// initial value although nothing (`driven`) does work on the bodies.
 fn energy_warning(summary: &Summary, driven: bool) -> Option<String> {
+    let who = if summary.method == "augury" {
+        "the explicit step and the augury correction added it (docs/augury.md)"
+    } else {
+        "the time integrator added it — plain Newmark can with contact (docs/bfemp.md, time \
+         integrators); contact_stabilized_newmark and backward_euler do not"
+    };
     if !(summary.energy_rise > ENERGY_RISE_WARNING) || driven {
         return None;
     }
@@ -452,9 +516,7 @@ fn energy_warning(summary: &Summary, driven: bool) -> Option<String> {
     };
     Some(format!(
         "the total energy rose from {:.4e} to {:.4e}{factor} by step {}, though no prescribed \
-         motion or moving boundary does work on the bodies: the time integrator added it — \
-         plain Newmark can with contact (docs/bfemp.md, time integrators); \
-         contact_stabilized_newmark and backward_euler do not",
+         motion or moving boundary does work on the bodies: {who}",
         summary.initial_energy, summary.peak_energy, summary.energy_rise_step
     ))
 }
@@ -507,6 +569,12 @@ fn record(m: &mut Metrics, summary: &mut Summary, report: &StepReport) {
     summary.retried_steps += usize::from(report.retried.is_some());
     summary.max_penetrations = summary.max_penetrations.max(m.penetrations);
     summary.penetrating_steps += usize::from(m.penetrations > 0);
+    if let Some(d) = &m.deepest
+        && d.depth > summary.max_penetration_depth
+    {
+        summary.max_penetration_depth = d.depth;
+        summary.deepest_penetration = Some(format!("{} after step {}", d.describe(), m.step));
+    }
     summary.swept_steps += usize::from(report.swept.entered > 0);
     summary.max_swept_depth = summary.max_swept_depth.max(report.swept.depth);
     summary.passed_through_steps += usize::from(report.swept.tunnelled > 0);

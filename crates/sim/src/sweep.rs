@@ -9,10 +9,11 @@
 //! `[t_in, t_out]`; that part is sampled ([`SAMPLES`] times) for whether the point is inside an
 //! element of the body at that moment and, if it is, how far it is from the body's boundary.
 //! A sliding point crossing a convex corner of a facetted boundary cuts it: the chord of its
-//! motion dips in (on the §6.2 sine boundary by up to a third of d̂, its crests turning by 28°
-//! a facet) and comes out through a facet facing about the same way it went in. A point that
+//! motion dips in (on the §6.2 sine strip, whose crests turn by 28° a facet, by up to a few
+//! d̂ at the quick tier's Δt) and comes out through a facet facing about the same way it went in. A point that
 //! passed *through* a body comes out the other side: through a facet facing away from the one
-//! it went in by (outward normals more than 90° apart). [`SweptReport`] gives how many paths
+//! it went in by (outward normals more than 120° apart — a box corner, 90°, and a wedge down
+//! to 60° are cut, not passed through). [`SweptReport`] gives how many paths
 //! went inside at all, the deepest, and how many passed through.
 //!
 //! Independent of the solver (like the `penetrations` count): the same geometric queries on the
@@ -49,7 +50,7 @@ pub struct SweptReport {
     /// The deepest any of those paths went inside a body (m; 0 if none did).
     pub depth: f64,
     /// Paths that passed through a body: in through one facet, out through one facing away
-    /// from it (outward normals more than 90° apart) — not merely cutting a corner. A BFEMP
+    /// from it (outward normals more than 120° apart) — not merely cutting a corner. A BFEMP
     /// step with any is solved again in substeps (`solver.max_substeps`); an augury step's are
     /// reported (`passed_through_steps` in summary.json).
     pub tunnelled: usize,
@@ -288,11 +289,14 @@ pub(crate) fn sweep_against<const D: usize>(
             let (t, depth) = deepest?;
             let n_in = body.boundary.facet_normal(f_in as usize, &at(t_in));
             let n_out = body.boundary.facet_normal(f_out as usize, &at(t_out));
+            // More than 120° apart: a right-angled corner (90°, ±round-off) is cut, not passed
+            // through; so is a wedge down to 60°.
+            let through = depth > 0.0 && n_in.dot(&n_out) < -0.5 * n_in.norm() * n_out.norm();
             Some(Entered {
                 k: q,
                 t,
                 depth,
-                through: depth > 0.0 && n_in.dot(&n_out) < 0.0,
+                through,
             })
         })
         .collect()

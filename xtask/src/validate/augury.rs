@@ -466,10 +466,11 @@ pub fn blocks_impact_3d(ctx: &Ctx, out: &mut Outcome) -> Result<()> {
                     end.t
                 ),
                 format!(
-                    "{:.1} % ({:.1} %), max penetrating vertices {}",
+                    "{:.1} % ({:.1} %), max penetrating vertices {}; {}",
                     100.0 * l,
                     100.0 * mean,
-                    r.summary.max_penetrations
+                    r.summary.max_penetrations,
+                    super::analysis_depth(&r.summary)
                 ),
                 "shrinks with h for APIC (paper Fig. 9)".into(),
             ));
@@ -634,7 +635,7 @@ fn ramp_3d(ctx: &Ctx, out: &mut Outcome, series: &mut Vec<Series>) -> Result<()>
             let label = format!("ramp3d_n{iterations}_t{tau_steps}_h{h}");
             let pictures = (iterations == 1 && tau_steps == 1.0 && h == 1.0)
                 .then(|| Pictures::keys("Ramp, N = 1, h = 1", 2).last_only());
-            let (_, probes) = ctx.run_scene_probe::<3, (f64, f64)>(&label, &v, pictures, |w| {
+            let (r, probes) = ctx.run_scene_probe::<3, (f64, f64)>(&label, &v, pictures, |w| {
                 let b = &w.fem[1];
                 let m: f64 = b.mass.iter().sum();
                 let cx =
@@ -654,7 +655,11 @@ fn ramp_3d(ctx: &Ctx, out: &mut Outcome, series: &mut Vec<Series>) -> Result<()>
                 &format!(
                     "3D APIC N = {iterations}, {tau_name}, h = {h}: displacement error at t = {t:.2} s"
                 ),
-                format!("{:+.1} %", 100.0 * (s - exact) / exact),
+                format!(
+                    "{:+.1} %; {}",
+                    100.0 * (s - exact) / exact,
+                    super::analysis_depth(&r.summary)
+                ),
                 "→ 0 under refinement (paper Fig. 11)".into(),
             ));
             let every = (probes.len() / 200).max(1);

@@ -119,6 +119,8 @@ pub(super) struct Point {
     pub wall: f64,
     pub error: f64,
     pub penetrations: usize,
+    /// How deep the deepest point went, in words (`analysis_depth`).
+    pub depth: String,
 }
 
 /// Each method's Pareto front (the most accurate run up to each wall time) as a chart series,
@@ -146,10 +148,15 @@ pub(super) fn fronts(
             out.checks.push(Check::info(
                 &format!("{prefix}{m}, h = {}, Δt = {:.2e} s", p.h, p.dt),
                 format!(
-                    "error {:.2} %, {:.2} s wall, max penetrations {}",
+                    "error {:.2} %, {:.2} s wall, max penetrations {}{}",
                     100.0 * p.error,
                     p.wall,
-                    p.penetrations
+                    p.penetrations,
+                    if p.penetrations > 0 {
+                        format!(" ({})", p.depth)
+                    } else {
+                        String::new()
+                    }
                 ),
                 "→ 0".into(),
             ));
@@ -234,6 +241,7 @@ pub fn run(ctx: &Ctx) -> Result<Outcome> {
                 wall: r.summary.wall_s,
                 error: ((s - exact) / exact).abs(),
                 penetrations: r.summary.max_penetrations,
+                depth: super::analysis_depth(&r.summary),
             });
         }
         // Frictionless augury (the friction model with μ = 0) and the penalty baseline.
@@ -277,6 +285,7 @@ pub fn run(ctx: &Ctx) -> Result<Outcome> {
                     wall: r.summary.wall_s,
                     error: ((s - exact) / exact).abs(),
                     penetrations: r.summary.max_penetrations,
+                    depth: super::analysis_depth(&r.summary),
                 });
             }
         }
@@ -383,6 +392,7 @@ fn record(
             wall: r.summary.wall_s,
             error: (vs.last().copied().unwrap_or(f64::NAN) + V0).abs() / V0,
             penetrations: r.summary.max_penetrations,
+            depth: super::analysis_depth(&r.summary),
         }),
         Err(e) => failed.push(format!("{method}, h = {h}, Δt = {dt:.2e}: {e}")),
     }

@@ -140,7 +140,20 @@ impl Ctx {
 
     /// `spec` parsed back from its text and validated, as `femp run` would read it (relative
     /// paths against `fixtures/scenes/`); the text is what the run copies into its directory.
+    ///
+    /// Augury scenes run with `augury.penetration_limit: null`: the suite studies where the
+    /// method lets bodies into (or through) each other, so such a run goes on and its rows
+    /// report how deep (`summary.max_penetration_depth`, `passed_through_steps`).
     pub fn scene(&self, label: &str, spec: &SceneSpec) -> Result<femp::scene::Scene> {
+        let mut spec = spec.clone();
+        if let Some(a) = spec.augury.as_mut() {
+            a.penetration_limit = None;
+        } else if spec.method == femp::scene::Method::Augury {
+            spec.augury = Some(femp::scene::AugurySpec {
+                penetration_limit: None,
+                ..Default::default()
+            });
+        }
         Ok(femp::scene::parse(
             &spec.to_json(),
             label,

@@ -200,6 +200,7 @@ fn explicit_run(
                     wall: r.summary.wall_s,
                     error: (k / k_hertz() - 1.0).abs(),
                     penetrations: r.summary.max_penetrations,
+                    depth: super::analysis_depth(&r.summary),
                 });
             }
             notes.push(width_note(&format!("{method}, s = {s}"), &samples));
@@ -257,6 +258,7 @@ pub fn run(ctx: &Ctx) -> Result<Outcome> {
                 wall: r.summary.wall_s,
                 error: (k / k_hertz() - 1.0).abs(),
                 penetrations: r.summary.max_penetrations,
+                depth: super::analysis_depth(&r.summary),
             });
         }
         out.notes

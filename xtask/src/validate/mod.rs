@@ -356,6 +356,22 @@ fn workspace_root() -> PathBuf {
     here.parent().unwrap_or(here).to_path_buf()
 }
 
+/// How deep a run's deepest point went inside another body, and whether any passed through
+/// one, for a report row (issue 43: penetration reported with its depth, not only a count).
+pub(crate) fn analysis_depth(s: &femp::output::Summary) -> String {
+    let mut out = match &s.deepest_penetration {
+        None => "no vertex inside another body".to_string(),
+        Some(d) => format!("deepest {d}"),
+    };
+    if s.passed_through_steps > 0 {
+        out += &format!(
+            "; a vertex passed through a body in {} step(s)",
+            s.passed_through_steps
+        );
+    }
+    out
+}
+
 #[cfg(test)]
 mod tests {
     use super::workers::partition;

@@ -850,6 +850,9 @@ fn augury(s: &SceneSpec) -> Result<(), SimError> {
             if let Some(t) = a.tau {
                 positive("augury.tau", t)?;
             }
+            if let Some(l) = a.penetration_limit {
+                positive("augury.penetration_limit", l)?;
+            }
             if a.iterations > MAX_AUGURY_ITERATIONS {
                 return Err(invalid(
                     "augury.iterations",

@@ -80,6 +80,15 @@ pub struct AugurySpec {
     /// How fully prescribed bodies weigh in the correction (default `"lumped"`).
     #[serde(default)]
     pub obstacles: AuguryObstaclesSpec,
+    /// Stop the run when a boundary vertex ends a step deeper inside another body than this
+    /// fraction of that body's mean boundary edge, or passed through it over the step
+    /// (default 0.5); `null`: never stop (studies of where the method lets bodies in).
+    #[serde(default = "half")]
+    pub penetration_limit: Option<f64>,
+}
+
+fn half() -> Option<f64> {
+    Some(0.5)
 }
 
 /// How fully prescribed bodies (plates, walls) enter the augury correction.
@@ -948,6 +957,7 @@ impl Default for AugurySpec {
             contact: AuguryContactSpec::default(),
             penalty: None,
             obstacles: AuguryObstaclesSpec::default(),
+            penetration_limit: half(),
         }
     }
 }

@@ -210,10 +210,11 @@ fn the_penalty_baseline_runs_from_a_scene() {
 
 /// `"obstacles"` from a scene: block A driven by gravity into block B, whose every vertex is
 /// prescribed to rest (a wall). As a kinematic obstacle the wall keeps every vertex of A out;
-/// with lumped masses (the default) A sinks in.
+/// with lumped masses (the default) A sinks in — half an edge deep, where the run stops
+/// (`augury.penetration_limit`), unless the limit is lifted.
 #[test]
 fn a_prescribed_wall_holds_as_a_kinematic_obstacle() {
-    let max_penetrations = |obstacles: &str| {
+    let scene = |obstacles: &str| {
         let mut v = fixture();
         v["gravity"] = json!([5.0, 0.0]);
         v["time"]["duration"] = json!(2.0);
@@ -221,12 +222,34 @@ fn a_prescribed_wall_holds_as_a_kinematic_obstacle() {
         v["bodies"][0]["velocity"] = json!([0.0, 0.0]);
         v["bodies"][1]["velocity"] = json!([0.0, 0.0]);
         v["bodies"][1]["prescribed"] = json!([{ "vertices": "all", "motion": [] }]);
-        let dir = tempfile::tempdir().unwrap();
-        let r = run(parse(&v).unwrap(), dir.path(), &quiet(None)).unwrap();
-        r.summary.max_penetrations
+        v
     };
-    assert_eq!(max_penetrations("kinematic"), 0);
-    assert!(max_penetrations("lumped") > 0);
+    let dir = tempfile::tempdir().unwrap();
+    let r = run(
+        parse(&scene("kinematic")).unwrap(),
+        dir.path(),
+        &quiet(None),
+    )
+    .unwrap();
+    assert_eq!(r.summary.max_penetrations, 0);
+    let dir = tempfile::tempdir().unwrap();
+    let e = run(parse(&scene("lumped")).unwrap(), dir.path(), &quiet(None))
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("of `a` is") && e.contains("inside `b`") && e.contains("penetration_limit"),
+        "{e}"
+    );
+    let mut lifted = scene("lumped");
+    lifted["augury"]["penetration_limit"] = Value::Null;
+    let dir = tempfile::tempdir().unwrap();
+    let r = run(parse(&lifted).unwrap(), dir.path(), &quiet(None)).unwrap();
+    assert!(r.summary.max_penetrations > 0);
+    assert!(
+        r.summary.max_penetration_depth > 0.5 * 0.125,
+        "{}",
+        r.summary.max_penetration_depth
+    );
 }
 
 /// A time step far above the stability estimate blows up; the run stops with an error that
@@ -397,5 +420,50 @@ fn blocks_3d_separate_with_the_iteration_and_pic_sticks_without() {
     assert!(
         after.abs() < 0.1 * approach.abs(),
         "PIC sticky: {approach} → {after} m/s"
+    );
+}
+
+/// Issue 43, "contact that never silently fails": two thin bars meeting at 300 m/s with no
+/// contact handling pass through each other within one step — every end-of-step count is 0,
+/// but the straight-path check sees each vertex go through. By default the run stops at that
+/// step naming a vertex; with `penetration_limit: null` it goes on, counting the step in
+/// `passed_through_steps` with a warning.
+#[test]
+fn bodies_passing_through_each_other_in_one_step_stop_the_run() {
+    let mut v = fixture();
+    v["augury"] = json!({ "grid_spacing": 0.25, "contact": "none" });
+    v["bodies"][0]["mesh"]["rectangle"] =
+        json!({ "min": [-0.6, 0.0], "max": [-0.5, 1.0], "cells": [1, 8] });
+    v["bodies"][1]["mesh"]["rectangle"] =
+        json!({ "min": [0.5, 0.0], "max": [0.6, 1.0], "cells": [1, 8] });
+    v["bodies"][0]["velocity"] = json!([150.0, 0.0]);
+    v["bodies"][1]["velocity"] = json!([-150.0, 0.0]);
+    v["time"] = json!({ "dt": 4e-3, "duration": 8e-3 });
+    let dir = tempfile::tempdir().unwrap();
+    let e = run(parse(&v).unwrap(), dir.path(), &quiet(None))
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.starts_with("step 0 ")
+            && e.contains("passed through another body")
+            && e.contains("penetration_limit"),
+        "{e}"
+    );
+    // The end of that step had no vertex inside: only the paths show it.
+    let text = std::fs::read_to_string(dir.path().join("metrics.csv")).unwrap();
+    let header: Vec<&str> = text.lines().next().unwrap().split(',').collect();
+    let row: Vec<&str> = text.lines().nth(2).unwrap().split(',').collect();
+    let col = |n: &str| row[header.iter().position(|h| *h == n).unwrap()];
+    assert_eq!(col("penetrations"), "0");
+    assert!(col("swept_entered").parse::<usize>().unwrap() > 10);
+    v["augury"]["penetration_limit"] = Value::Null;
+    let dir = tempfile::tempdir().unwrap();
+    let r = run(parse(&v).unwrap(), dir.path(), &quiet(None)).unwrap();
+    assert_eq!(r.summary.passed_through_steps, 1);
+    assert!(
+        r.summary
+            .warnings
+            .iter()
+            .any(|w| w.contains("passed through another body"))
     );
 }

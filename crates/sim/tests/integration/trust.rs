@@ -472,19 +472,49 @@ fn absurd_arguments_are_refused_without_a_panic() {
 
 #[test]
 fn overlapping_augury_bodies_are_counted_and_warned_about() {
-    // Without contact handling two blocks pass through each other: the run completes, and
-    // says how often bodies overlapped.
+    // Without contact handling two blocks pass through each other: by default the run stops
+    // once a vertex is half an edge deep (`augury.penetration_limit`), naming it; with the
+    // limit lifted it completes and says how often, and how deep, bodies overlapped.
     let p = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../fixtures/scenes/augury_blocks.json");
     let mut v: Value = serde_json::from_str(&std::fs::read_to_string(p).unwrap()).unwrap();
     v["augury"] = json!({ "grid_spacing": 0.25, "contact": "none" });
     let dir = tempfile::tempdir().unwrap();
+    let p = scene_file(dir.path(), "stop.json", &v);
+    let out = dir.path().join("stopped");
+    let r = run_femp(&["run", &p, "--out", out.to_str().unwrap(), "--no-frames"]);
+    assert_eq!(r.status.code(), Some(1));
+    let s = summary(&out);
+    assert_eq!(s["status"], "failed");
+    let why = s["error"].as_str().unwrap();
+    assert!(
+        why.contains("inside `") && why.contains("penetration_limit"),
+        "{why}"
+    );
+    // The stopping step's row is written: its depth is past the limit.
+    let text = std::fs::read_to_string(out.join("metrics.csv")).unwrap();
+    let header: Vec<&str> = text.lines().next().unwrap().split(',').collect();
+    let col = header
+        .iter()
+        .position(|h| *h == "penetration_depth")
+        .unwrap();
+    let last: f64 = text
+        .lines()
+        .last()
+        .unwrap()
+        .split(',')
+        .nth(col)
+        .unwrap()
+        .parse()
+        .unwrap();
+    assert!(last > 0.5 * 0.125, "{last}");
+    v["augury"]["penetration_limit"] = Value::Null;
     let p = scene_file(dir.path(), "through.json", &v);
     let out = dir.path().join("out");
     let r = run_femp(&["run", &p, "--out", out.to_str().unwrap(), "--no-frames"]);
     assert!(r.status.success());
     let err = String::from_utf8_lossy(&r.stderr);
     assert!(
-        err.contains("warning: points were inside another body"),
+        err.contains("warning: points were inside another body") && err.contains("m inside `"),
         "{err}"
     );
     let s = summary(&out);

@@ -82,7 +82,7 @@ fn in_simplex<const D: usize>(p: &SVector<f64, D>, x: &[SVector<f64, D>]) -> boo
 /// The particles' straight paths from `p0` to `p1` against the FEM body moving from `b0` to
 /// `b1` (elements `cells`), by 64 samples per path: the deepest any went inside (distance to
 /// the body's outer faces — those of one element only), and how many passed *through* it —
-/// went in by one outer face and out by one facing away from it (outward normals more than 90°
+/// went in by one outer face and out by one facing away from it (outward normals more than 120°
 /// apart; each the face nearest the first and the last sample inside). A particle sliding round
 /// a convex corner cuts it, in and out by faces facing about the same way.
 fn paths_through<const D: usize>(
@@ -170,7 +170,7 @@ fn paths_through<const D: usize>(
             inside_at.push((t, p));
         }
         if let (Some(&(t0, q0)), Some(&(t1, q1))) = (inside_at.first(), inside_at.last())
-            && nearest(&q0, &at(t0)).dot(&nearest(&q1, &at(t1))) < 0.0
+            && nearest(&q0, &at(t0)).dot(&nearest(&q1, &at(t1))) < -0.5
         {
             through += 1;
         }
