@@ -278,6 +278,76 @@ pub fn first_inside<const D: usize>(
     inside_elements(points, mesh, x).into_iter().next()
 }
 
+/// Elements binned by their boxes in a hash of cells (the median element extent: an outlier — a
+/// stretched element of a corrupted mesh — must not make the table coarse, nor cover billions
+/// of cells); elements spanning more than [`ElementBins::MAX_CELLS`] cells are set aside and
+/// offered to every query.
+pub(crate) struct ElementBins<const D: usize> {
+    cell: f64,
+    table: std::collections::HashMap<[i64; D], Vec<u32>>,
+    big: Vec<u32>,
+}
+
+impl<const D: usize> ElementBins<D> {
+    /// Elements spanning more cells than this are tested against every point instead.
+    const MAX_CELLS: usize = 4096;
+
+    /// Bin the boxes `(lo, hi)` for which `keep` holds.
+    pub(crate) fn new(
+        boxes: &[(SVector<f64, D>, SVector<f64, D>)],
+        keep: impl Fn(&SVector<f64, D>, &SVector<f64, D>) -> bool,
+    ) -> Self {
+        let mut extents: Vec<f64> = boxes.iter().map(|(l, h)| (h - l).amax()).collect();
+        let cell = if extents.is_empty() {
+            1.0
+        } else {
+            let mid = extents.len() / 2;
+            let s = *extents.select_nth_unstable_by(mid, f64::total_cmp).1;
+            if s > 0.0 && s.is_finite() { s } else { 1.0 }
+        };
+        let mut table: std::collections::HashMap<[i64; D], Vec<u32>> = Default::default();
+        let mut big = Vec::new();
+        for (e, (lo, hi)) in boxes.iter().enumerate() {
+            if !keep(lo, hi) {
+                continue;
+            }
+            let a: [i64; D] = std::array::from_fn(|k| (lo[k] / cell).floor() as i64);
+            let b: [i64; D] = std::array::from_fn(|k| (hi[k] / cell).floor() as i64);
+            let n = (0..D).try_fold(1usize, |n, k| {
+                let span = usize::try_from(b[k].checked_sub(a[k])?.checked_add(1)?).ok()?;
+                n.checked_mul(span)
+            });
+            let Some(n) = n.filter(|&n| n <= Self::MAX_CELLS) else {
+                big.push(e as u32);
+                continue;
+            };
+            for flat in 0..n {
+                let mut rem = flat;
+                let key: [i64; D] = std::array::from_fn(|k| {
+                    let span = (b[k] - a[k] + 1) as usize;
+                    let o = rem % span;
+                    rem /= span;
+                    a[k] + o as i64
+                });
+                table.entry(key).or_default().push(e as u32);
+            }
+        }
+        Self { cell, table, big }
+    }
+
+    /// The elements whose cells hold `p` (and the set-aside ones): a superset of those whose
+    /// box contains it.
+    pub(crate) fn near(&self, p: &SVector<f64, D>) -> impl Iterator<Item = u32> + '_ {
+        let key: [i64; D] = std::array::from_fn(|k| (p[k] / self.cell).floor() as i64);
+        self.table
+            .get(&key)
+            .map_or(&[][..], Vec::as_slice)
+            .iter()
+            .chain(&self.big)
+            .copied()
+    }
+}
+
 /// Every point inside (or on) an element: (point, element), via a hash of element boxes.
 pub fn inside_elements<const D: usize>(
     points: &[SVector<f64, D>],
@@ -300,19 +370,6 @@ pub fn inside_elements<const D: usize>(
             (lo, hi)
         })
         .collect();
-    // Cell size: the median element extent (an outlier — a stretched element of a corrupted
-    // mesh — must not make the table coarse, nor cover billions of cells).
-    let mut extents: Vec<f64> = boxes.iter().map(|(l, h)| (h - l).amax()).collect();
-    let mid = extents.len() / 2;
-    let size = *extents.select_nth_unstable_by(mid, f64::total_cmp).1;
-    let cell = if size > 0.0 && size.is_finite() {
-        size
-    } else {
-        1.0
-    };
-    // Elements spanning more cells than this are tested against every point instead.
-    const MAX_CELLS_PER_ELEMENT: usize = 4096;
-    let mut big = Vec::new();
     // Only elements that reach the points' bounding box can hold one (bodies apart or barely
     // touching — the usual case when this runs every step — skip the table almost entirely).
     let (plo, phi) = points
@@ -324,38 +381,11 @@ pub fn inside_elements<const D: usize>(
     if !boxes.iter().any(|(lo, hi)| reaches(lo, hi)) {
         return Vec::new();
     }
-    let mut table: std::collections::HashMap<[i64; D], Vec<usize>> =
-        std::collections::HashMap::new();
-    for (e, (lo, hi)) in boxes.iter().enumerate() {
-        if !reaches(lo, hi) {
-            continue;
-        }
-        let a: [i64; D] = std::array::from_fn(|k| (lo[k] / cell).floor() as i64);
-        let b: [i64; D] = std::array::from_fn(|k| (hi[k] / cell).floor() as i64);
-        let n = (0..D).try_fold(1usize, |n, k| {
-            let span = usize::try_from(b[k].checked_sub(a[k])?.checked_add(1)?).ok()?;
-            n.checked_mul(span)
-        });
-        let Some(n) = n.filter(|&n| n <= MAX_CELLS_PER_ELEMENT) else {
-            big.push(e);
-            continue;
-        };
-        for flat in 0..n {
-            let mut rem = flat;
-            let key: [i64; D] = std::array::from_fn(|k| {
-                let span = (b[k] - a[k] + 1) as usize;
-                let o = rem % span;
-                rem /= span;
-                a[k] + o as i64
-            });
-            table.entry(key).or_default().push(e);
-        }
-    }
+    let bins = ElementBins::new(&boxes, reaches);
     let mut out = Vec::new();
     for (p, x0) in points.iter().enumerate() {
-        let key: [i64; D] = std::array::from_fn(|k| (x0[k] / cell).floor() as i64);
-        let hashed = table.get(&key).map_or(&[][..], Vec::as_slice);
-        for &e in hashed.iter().chain(&big) {
+        for e in bins.near(x0) {
+            let e = e as usize;
             let (lo, hi) = &boxes[e];
             if (0..D).all(|k| x0[k] >= lo[k] && x0[k] <= hi[k])
                 && inside_simplex(x0, &cells[e][..D + 1], x)

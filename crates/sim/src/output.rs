@@ -99,9 +99,10 @@ pub struct Summary {
     /// See `substepped_steps`.
     pub max_substeps: usize,
     /// The most the total energy (kinetic, elastic, barrier, gravity) rose above its initial
-    /// value at any step, as a fraction of the initial energy's scale (the largest of its
-    /// magnitude, its kinetic + elastic + barrier part, and the gravitational energy released
-    /// so far); 0 if it never rose.
+    /// value at any step, as a fraction of the energy in play — the kinetic + elastic + barrier
+    /// energy at the start, or the gravitational energy released so far, whichever is larger
+    /// (not the total itself, whose size depends on where gravity's potential is zero); 0 if
+    /// it never rose.
     pub energy_rise: f64,
     /// The step at which `energy_rise` was reached.
     pub energy_rise_step: usize,

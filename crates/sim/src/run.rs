@@ -301,14 +301,13 @@ fn drive<const D: usize>(
     let frame_dt = world.scene.spec.time.frame_interval.unwrap_or(world.dt);
     let mut m0 = world.measure();
     let energy0 = total_energy(&m0);
-    // The scale a rise is measured against: the initial energy's magnitude, its part in motion
-    // and deformation, or the most gravitational energy released so far (bodies may start at
-    // rest with the gravity potential's origin among them: a total of 0, where round-off
-    // would look like a gain).
+    // The scale a rise is measured against, independent of the gravity potential's origin
+    // (which can make the total as large, or as close to 0, as one likes): the energy in
+    // motion and deformation at the start, or the gravitational energy released so far —
+    // and never below the total's own round-off.
     let gravity0 = m0.gravity_energy;
-    let mut energy_scale = energy0
-        .abs()
-        .max(m0.kinetic_energy + m0.elastic_energy + m0.barrier_energy)
+    let mut energy_scale = (m0.kinetic_energy + m0.elastic_energy + m0.barrier_energy)
+        .max(1e-9 * energy0.abs())
         .max(f64::MIN_POSITIVE);
     summary.initial_energy = energy0;
     summary.peak_energy = energy0;

@@ -337,16 +337,14 @@ fn touch<const D: usize>(
 /// A body's elements binned by the boxes they sweep over a step (start and end positions), to
 /// find the element holding a point at any moment of the step.
 struct SweptElements<const D: usize> {
-    cell: f64,
-    table: std::collections::HashMap<[i64; D], Vec<u32>>,
-    /// Elements spanning too many cells, tested against every point.
-    big: Vec<u32>,
+    bins: crate::bodies::ElementBins<D>,
 }
 
 impl<const D: usize> SweptElements<D> {
     fn new(body: &FemBody<D>, b0: &[SVector<f64, D>], b1: &[SVector<f64, D>]) -> Self {
-        let cells = body.mesh.cells();
-        let boxes: Vec<(SVector<f64, D>, SVector<f64, D>)> = cells
+        let boxes: Vec<(SVector<f64, D>, SVector<f64, D>)> = body
+            .mesh
+            .cells()
             .iter()
             .map(|c| {
                 let mut lo = b0[c[0]];
@@ -360,40 +358,9 @@ impl<const D: usize> SweptElements<D> {
                 (lo, hi)
             })
             .collect();
-        let mut extents: Vec<f64> = boxes.iter().map(|(l, h)| (h - l).amax()).collect();
-        let cell = if extents.is_empty() {
-            1.0
-        } else {
-            let mid = extents.len() / 2;
-            let s = *extents.select_nth_unstable_by(mid, f64::total_cmp).1;
-            if s > 0.0 && s.is_finite() { s } else { 1.0 }
-        };
-        const MAX_CELLS: usize = 4096;
-        let mut table: std::collections::HashMap<[i64; D], Vec<u32>> = Default::default();
-        let mut big = Vec::new();
-        for (e, (lo, hi)) in boxes.iter().enumerate() {
-            let a: [i64; D] = std::array::from_fn(|k| (lo[k] / cell).floor() as i64);
-            let b: [i64; D] = std::array::from_fn(|k| (hi[k] / cell).floor() as i64);
-            let n = (0..D).try_fold(1usize, |n, k| {
-                let span = usize::try_from(b[k].checked_sub(a[k])?.checked_add(1)?).ok()?;
-                n.checked_mul(span)
-            });
-            let Some(n) = n.filter(|&n| n <= MAX_CELLS) else {
-                big.push(e as u32);
-                continue;
-            };
-            for flat in 0..n {
-                let mut rem = flat;
-                let key: [i64; D] = std::array::from_fn(|k| {
-                    let span = (b[k] - a[k] + 1) as usize;
-                    let o = rem % span;
-                    rem /= span;
-                    a[k] + o as i64
-                });
-                table.entry(key).or_default().push(e as u32);
-            }
+        Self {
+            bins: crate::bodies::ElementBins::new(&boxes, |_, _| true),
         }
-        Self { cell, table, big }
     }
 
     /// Whether `p` lies in an element of `body` at fraction `t` of the step (closed elements).
@@ -405,16 +372,14 @@ impl<const D: usize> SweptElements<D> {
         b0: &[SVector<f64, D>],
         b1: &[SVector<f64, D>],
     ) -> bool {
-        let key: [i64; D] = std::array::from_fn(|k| (p[k] / self.cell).floor() as i64);
-        let hashed = self.table.get(&key).map_or(&[][..], Vec::as_slice);
         let cells = body.mesh.cells();
-        hashed.iter().chain(&self.big).any(|&e| {
+        let idx: Vec<usize> = (0..=D).collect();
+        self.bins.near(p).any(|e| {
             let c = &cells[e as usize];
             let x: Vec<SVector<f64, D>> = c[..=D]
                 .iter()
                 .map(|&v| b0[v] + (b1[v] - b0[v]) * t)
                 .collect();
-            let idx: Vec<usize> = (0..=D).collect();
             inside_simplex(p, &idx, &x)
         })
     }

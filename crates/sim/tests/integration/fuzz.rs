@@ -286,30 +286,29 @@ pub fn corrupt(bytes: &[u8], op: u32, at: u32) -> Vec<u8> {
         3 => {
             // Repeat a line: a cell or a node written twice, or a section count that no longer
             // matches (issue 39's duplicated cells).
-            let start = b[..i]
-                .iter()
-                .rposition(|&c| c == b'\n')
-                .map_or(0, |s| s + 1);
-            let end = b[i..]
-                .iter()
-                .position(|&c| c == b'\n')
-                .map_or(b.len(), |e| i + e + 1);
+            let (start, end) = line_at(&b, i);
             let line: Vec<u8> = b[start..end].to_vec();
             b.splice(end..end, line);
         }
         _ => {
-            let start = b[..i]
-                .iter()
-                .rposition(|&c| c == b'\n')
-                .map_or(0, |s| s + 1);
-            let end = b[i..]
-                .iter()
-                .position(|&c| c == b'\n')
-                .map_or(b.len(), |e| i + e + 1);
+            let (start, end) = line_at(&b, i);
             b.drain(start..end);
         }
     }
     b
+}
+
+/// The byte range of the line holding byte `i` (with its newline).
+fn line_at(b: &[u8], i: usize) -> (usize, usize) {
+    let start = b[..i]
+        .iter()
+        .rposition(|&c| c == b'\n')
+        .map_or(0, |s| s + 1);
+    let end = b[i..]
+        .iter()
+        .position(|&c| c == b'\n')
+        .map_or(b.len(), |e| i + e + 1);
+    (start, end)
 }
 
 /// How long after the world is built the watchdog raises the interrupt flag.
