@@ -5,10 +5,14 @@
 //!   README's test command. Every step runs even if an earlier one fails; the exit code is
 //!   non-zero if any failed.
 //! * `validate` — the papers' experiments (`validate/mod.rs`).
+//! * `bench` — what a 3D BFEMP step costs, per ordering (`bench.rs`).
 //! * `compact-png FILE…` — re-encode PNGs in place as the published reports' images are (at most
 //!   256 colours, `validate/compact.rs`): for images committed under `docs/` by hand.
 
+mod bench;
 mod ci;
+#[cfg(test)]
+mod structure;
 mod validate;
 
 fn main() -> std::process::ExitCode {
@@ -26,6 +30,7 @@ fn run() -> anyhow::Result<()> {
     match args.first().map(String::as_str) {
         Some("ci") => ci::run(),
         Some("validate") => validate::main(&args[1..]),
+        Some("bench") => bench::main(&args[1..]),
         Some("compact-png") => {
             anyhow::ensure!(args.len() > 1, "compact-png needs PNG files\n\n{USAGE}");
             for f in &args[1..] {
@@ -47,4 +52,6 @@ const USAGE: &str = "usage: cargo xtask <task>
 tasks:
   ci        format check, clippy -D warnings, and the test suite (what .ci/run runs)
   validate  the papers' experiments: [--quick | --full] [--only NAME…] [--out DIR]
+  bench     3D step cost: Newton iterations and seconds per step on block_on_plate_3d and a
+            §6.7 twist window [--only plate|twist] [--steps N] [--ordering auto|amd|nested_dissection …]
   compact-png FILE…  re-encode PNGs in place as the reports' images (≤ 256 colours)";

@@ -252,10 +252,10 @@ impl<const D: usize> AuguryState<D> {
     pub(crate) fn contact_metrics(
         &self,
         fem: &[FemBody<D>],
-    ) -> (usize, f64, Option<crate::metrics::Penetration>) {
+    ) -> (usize, f64, Option<crate::bodies::Penetration>) {
         let mut n = 0;
         let mut min_d = f64::INFINITY;
-        let mut worst: Option<crate::metrics::Penetration> = None;
+        let mut worst: Option<crate::bodies::Penetration> = None;
         let mut c = femp_contact::broad_phase::Candidates::default();
         for (i, j) in self.near_pairs(fem, self.grid_spacing) {
             let (k, deepest) = self.penetrations(fem, i, j, true);
@@ -263,7 +263,7 @@ impl<const D: usize> AuguryState<D> {
             if let Some((slot, depth)) = deepest
                 && worst.as_ref().is_none_or(|w| depth > w.depth)
             {
-                worst = Some(crate::metrics::Penetration {
+                worst = Some(crate::bodies::Penetration {
                     points_of: fem[i].name.clone(),
                     point: fem[i].boundary.vertices()[slot],
                     body: fem[j].name.clone(),

@@ -167,6 +167,41 @@ impl<const D: usize> FemBody<D> {
     }
 }
 
+/// A point inside another body (for `Metrics::deepest`).
+#[derive(Clone, Debug, PartialEq)]
+pub struct Penetration {
+    /// The point's body (an MPM body, or a FEM body for its boundary vertices).
+    pub points_of: String,
+    /// The point: particle index (MPM) or vertex index (FEM).
+    pub point: usize,
+    /// The body it is inside.
+    pub body: String,
+    /// Its distance to that body's boundary (m).
+    pub depth: f64,
+    /// That body's mean boundary edge length (m), the scale of "deep".
+    pub edge: f64,
+}
+
+impl Penetration {
+    /// The penetration in words.
+    pub fn describe(&self) -> String {
+        format!(
+            "{} {} of `{}` is {:.3e} m inside `{}` ({:.2} of its mean boundary edge {:.3e} m)",
+            if self.points_of.is_empty() {
+                "point"
+            } else {
+                "vertex"
+            },
+            self.point,
+            self.points_of,
+            self.depth,
+            self.body,
+            self.depth / self.edge,
+            self.edge
+        )
+    }
+}
+
 /// Who the "particles" of a contact pair are.
 #[derive(Clone, Debug)]
 pub enum Points {

@@ -2,6 +2,9 @@
 
 use std::path::PathBuf;
 
+/// The lock file that keeps two runs out of one output directory (`crate::output`).
+pub const LOCK_FILE: &str = ".femp.lock";
+
 /// Everything that can go wrong, named by what and where.
 #[derive(Debug, thiserror::Error)]
 pub enum SimError {
@@ -63,7 +66,7 @@ pub enum SimError {
     #[error(
         "{}: another femp run is writing into this directory (it holds {}); wait for it to end or choose another --out",
         dir.display(),
-        crate::output::LOCK_FILE
+        LOCK_FILE
     )]
     OutputBusy {
         /// The output directory.

@@ -4,6 +4,7 @@
 use femp_fem::Hyperelastic;
 use nalgebra::{SVector, Vector3};
 
+pub use crate::bodies::Penetration;
 use crate::world::{Points, World, inside_elements};
 
 /// One row of `metrics.csv`.
@@ -82,41 +83,6 @@ pub struct Metrics {
     pub contact_forces: Vec<[f64; 3]>,
     /// The friction part of `contact_forces`.
     pub friction_forces: Vec<[f64; 3]>,
-}
-
-/// A point inside another body (for [`Metrics::deepest`]).
-#[derive(Clone, Debug, PartialEq)]
-pub struct Penetration {
-    /// The point's body (an MPM body, or a FEM body for its boundary vertices).
-    pub points_of: String,
-    /// The point: particle index (MPM) or vertex index (FEM).
-    pub point: usize,
-    /// The body it is inside.
-    pub body: String,
-    /// Its distance to that body's boundary (m).
-    pub depth: f64,
-    /// That body's mean boundary edge length (m), the scale of "deep".
-    pub edge: f64,
-}
-
-impl Penetration {
-    /// The penetration in words.
-    pub fn describe(&self) -> String {
-        format!(
-            "{} {} of `{}` is {:.3e} m inside `{}` ({:.2} of its mean boundary edge {:.3e} m)",
-            if self.points_of.is_empty() {
-                "point"
-            } else {
-                "vertex"
-            },
-            self.point,
-            self.points_of,
-            self.depth,
-            self.body,
-            self.depth / self.edge,
-            self.edge
-        )
-    }
 }
 
 /// CSV header matching [`Metrics::csv_row`] for a BFEMP scene or (`augury`) an augury one,

@@ -172,8 +172,7 @@ pub struct OutputOptions {
 /// The copy of the scene file a run writes into its directory.
 pub const SCENE_COPY: &str = "scene_copy.json";
 
-/// The lock file that keeps two runs out of one directory.
-pub const LOCK_FILE: &str = ".femp.lock";
+pub use crate::error::LOCK_FILE;
 
 /// Writes a run's files as it goes, every one of them inside its directory:
 ///

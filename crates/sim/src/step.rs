@@ -12,7 +12,7 @@ use crate::error::SimError;
 use crate::objective::{Dofs, Inertia, Penalty, StepObjective};
 use crate::report::StepReport;
 use crate::scene::BoundaryCondition;
-use crate::scene::spec::{LinearSpec, ProjectionSpec};
+use crate::scene::spec::{LinearSpec, OrderingSpec, ProjectionSpec};
 use crate::world::{MethodState, Transfer, World};
 
 /// What a BFEMP step changes, kept to solve the step again in substeps.
@@ -270,10 +270,12 @@ impl<const D: usize> World<D> {
             tolerance: self.scene.spec.solver.tolerance,
             dt,
             max_iterations: self.scene.spec.solver.max_newton_iterations,
-            ordering: if D == 3 && n_dofs > 30_000 {
-                Ordering::NestedDissection { block: D }
-            } else {
-                Ordering::Amd
+            ordering: match self.scene.spec.solver.ordering {
+                OrderingSpec::Auto if D == 3 && n_dofs > 30_000 => {
+                    Ordering::NestedDissection { block: D }
+                }
+                OrderingSpec::Auto | OrderingSpec::Amd => Ordering::Amd,
+                OrderingSpec::NestedDissection => Ordering::NestedDissection { block: D },
             },
             threads: Threads::Auto,
             hessian: match self.scene.spec.solver.projection {
@@ -768,6 +770,98 @@ impl<const D: usize> World<D> {
             x_hat,
             transfers_s,
         })
+    }
+}
+
+/// The straight-path check of a step ([`crate::sweep`]) over this world's bodies.
+impl<const D: usize> World<D> {
+    /// Where the particles and FEM vertices are now.
+    pub fn positions(&self) -> crate::sweep::Positions<D> {
+        crate::sweep::Positions {
+            particles: self.mpm.as_ref().map_or_else(Vec::new, |m| m.x.clone()),
+            fem: self.fem.iter().map(|b| b.x.clone()).collect(),
+        }
+    }
+
+    /// The straight paths from `before` (an earlier [`World::positions`], normally the start of
+    /// the step just taken) to now, against every body the points can touch: a BFEMP world's
+    /// contact pairs; in an augury world every FEM body's boundary vertices against every other
+    /// body.
+    pub fn sweep(&self, before: &crate::sweep::Positions<D>) -> crate::sweep::SweptReport {
+        let mut report = crate::sweep::SweptReport::default();
+        let now = self.positions();
+        // (points, facet body, names)
+        let mut sets: Vec<(&crate::bodies::Points, usize, &str, &str)> = Vec::new();
+        let augury_pairs: Vec<crate::bodies::Points>;
+        if self.augury().is_some() {
+            augury_pairs = (0..self.fem.len())
+                .map(|body| crate::bodies::Points::Fem { body })
+                .collect();
+            for (i, pts) in augury_pairs.iter().enumerate() {
+                for j in 0..self.fem.len() {
+                    if i != j {
+                        sets.push((pts, j, &self.fem[i].name, &self.fem[j].name));
+                    }
+                }
+            }
+        } else {
+            for pair in &self.pairs {
+                sets.push((&pair.points, pair.facets_of, &pair.names.0, &pair.names.1));
+            }
+        }
+        for (points, facets_of, points_name, body_name) in sets {
+            let (p0, p1, ids, particle): (Vec<_>, Vec<_>, Vec<usize>, bool) = match points {
+                crate::bodies::Points::Mpm { range } => (
+                    before.particles[range.0..range.1].to_vec(),
+                    now.particles[range.0..range.1].to_vec(),
+                    (range.0..range.1).collect(),
+                    true,
+                ),
+                crate::bodies::Points::Fem { body } => {
+                    let vs = self.fem[*body].boundary.vertices();
+                    (
+                        vs.iter().map(|&v| before.fem[*body][v]).collect(),
+                        vs.iter().map(|&v| now.fem[*body][v]).collect(),
+                        vs.to_vec(),
+                        false,
+                    )
+                }
+            };
+            let body = &self.fem[facets_of];
+            let r = crate::sweep::sweep_against(
+                &p0,
+                &p1,
+                body,
+                &before.fem[facets_of],
+                &now.fem[facets_of],
+            );
+            report.entered += r.len();
+            for crate::sweep::Entered {
+                k,
+                t,
+                depth,
+                through,
+            } in r
+            {
+                report.tunnelled += usize::from(through);
+                if depth > report.depth || report.worst.is_none() {
+                    report.depth = report.depth.max(depth);
+                    let at = p0[k] + (p1[k] - p0[k]) * t;
+                    report.worst = Some(crate::sweep::SweptPoint {
+                        points_of: points_name.to_string(),
+                        point: ids[k],
+                        particle,
+                        body: body_name.to_string(),
+                        from: p0[k].as_slice().to_vec(),
+                        to: p1[k].as_slice().to_vec(),
+                        t,
+                        at: at.as_slice().to_vec(),
+                        depth,
+                    });
+                }
+            }
+        }
+        report
     }
 }
 

@@ -24,9 +24,8 @@ use femp_contact::ccd::{self, CcdOptions};
 use nalgebra::{SVector, Vector3};
 use rayon::prelude::*;
 
-use crate::bodies::{FemBody, Points, point_facet_distance};
+use crate::bodies::{FemBody, point_facet_distance};
 use crate::build::inside_simplex;
-use crate::world::World;
 
 /// Moments sampled between a path's first and last touch of a body.
 pub const SAMPLES: usize = 16;
@@ -115,91 +114,6 @@ impl SweptReport {
 
 fn round(v: &[f64]) -> Vec<f64> {
     v.iter().map(|x| (x * 1e6).round() / 1e6).collect()
-}
-
-impl<const D: usize> World<D> {
-    /// Where the particles and FEM vertices are now.
-    pub fn positions(&self) -> Positions<D> {
-        Positions {
-            particles: self.mpm.as_ref().map_or_else(Vec::new, |m| m.x.clone()),
-            fem: self.fem.iter().map(|b| b.x.clone()).collect(),
-        }
-    }
-
-    /// The straight paths from `before` (an earlier [`World::positions`], normally the start of
-    /// the step just taken) to now, against every body the points can touch: a BFEMP world's
-    /// contact pairs; in an augury world every FEM body's boundary vertices against every other
-    /// body.
-    pub fn sweep(&self, before: &Positions<D>) -> SweptReport {
-        let mut report = SweptReport::default();
-        let now = self.positions();
-        // (points, facet body, names)
-        let mut sets: Vec<(&Points, usize, &str, &str)> = Vec::new();
-        let augury_pairs: Vec<Points>;
-        if self.augury().is_some() {
-            augury_pairs = (0..self.fem.len())
-                .map(|body| Points::Fem { body })
-                .collect();
-            for (i, pts) in augury_pairs.iter().enumerate() {
-                for j in 0..self.fem.len() {
-                    if i != j {
-                        sets.push((pts, j, &self.fem[i].name, &self.fem[j].name));
-                    }
-                }
-            }
-        } else {
-            for pair in &self.pairs {
-                sets.push((&pair.points, pair.facets_of, &pair.names.0, &pair.names.1));
-            }
-        }
-        for (points, facets_of, points_name, body_name) in sets {
-            let (p0, p1, ids, particle): (Vec<_>, Vec<_>, Vec<usize>, bool) = match points {
-                Points::Mpm { range } => (
-                    before.particles[range.0..range.1].to_vec(),
-                    now.particles[range.0..range.1].to_vec(),
-                    (range.0..range.1).collect(),
-                    true,
-                ),
-                Points::Fem { body } => {
-                    let vs = self.fem[*body].boundary.vertices();
-                    (
-                        vs.iter().map(|&v| before.fem[*body][v]).collect(),
-                        vs.iter().map(|&v| now.fem[*body][v]).collect(),
-                        vs.to_vec(),
-                        false,
-                    )
-                }
-            };
-            let body = &self.fem[facets_of];
-            let r = sweep_against(&p0, &p1, body, &before.fem[facets_of], &now.fem[facets_of]);
-            report.entered += r.len();
-            for Entered {
-                k,
-                t,
-                depth,
-                through,
-            } in r
-            {
-                report.tunnelled += usize::from(through);
-                if depth > report.depth || report.worst.is_none() {
-                    report.depth = report.depth.max(depth);
-                    let at = p0[k] + (p1[k] - p0[k]) * t;
-                    report.worst = Some(SweptPoint {
-                        points_of: points_name.to_string(),
-                        point: ids[k],
-                        particle,
-                        body: body_name.to_string(),
-                        from: p0[k].as_slice().to_vec(),
-                        to: p1[k].as_slice().to_vec(),
-                        t,
-                        at: at.as_slice().to_vec(),
-                        depth,
-                    });
-                }
-            }
-        }
-        report
-    }
 }
 
 /// A touch of a body by a path: the fraction of the step and the facet.

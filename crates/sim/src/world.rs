@@ -14,9 +14,10 @@ use nalgebra::{SMatrix, SVector};
 use rayon::prelude::*;
 
 use crate::augury::AuguryState;
-use crate::build::{fem_mesh, sample_shape, transform_fn};
+use crate::build::{sample_shape, transform_fn};
 use crate::error::{SimError, invalid};
 use crate::motion::{Motion, angular_components};
+use crate::scene::mesh::fem_mesh;
 use crate::scene::{
     BarrierHessianSpec, BodySpec, IntegratorSpec, MaterialSpec, ModelSpec, Scene, TransferSpec,
     VertexSelector,

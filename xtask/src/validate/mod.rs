@@ -351,7 +351,7 @@ pub fn least_squares_slope(pts: &[(f64, f64)]) -> f64 {
     num / den
 }
 
-fn workspace_root() -> PathBuf {
+pub(crate) fn workspace_root() -> PathBuf {
     let here = Path::new(env!("CARGO_MANIFEST_DIR"));
     here.parent().unwrap_or(here).to_path_buf()
 }

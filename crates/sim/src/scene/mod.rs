@@ -1,6 +1,7 @@
 //! Scenes: JSON files (format in `docs/scenes.md`, types in [`spec`]), loaded with field paths
 //! in every error and validated before anything is built.
 
+pub mod mesh;
 pub mod size;
 pub mod spec;
 

@@ -18,8 +18,8 @@ use std::path::Path;
 
 use femp_fem::Mesh;
 
+use super::mesh::fem_mesh;
 use super::{BodySpec, FemBody, MeshSpec, Method, MpmBody, Scene, ShapeSpec, VertexSelector};
-use crate::build::fem_mesh;
 use crate::error::SimError;
 
 /// How large a scene may be.

@@ -235,10 +235,27 @@ pub struct SolverSpec {
     /// When a step's Newton solve fails (iteration limit, stalled line search), solve the step
     /// again from its start with the other `projection`; the step fails only if both do.
     pub retry_other_projection: bool,
+    /// The fill-reducing ordering of the sparse Cholesky factorisations.
+    pub ordering: OrderingSpec,
     /// The most substeps a step may be split into when a point's straight path over it would
     /// pass through a body ([`crate::sweep`]): the step is solved again as 2, 4, 8, … substeps
     /// up to this many; 1 never splits (such a step fails at once).
     pub max_substeps: usize,
+}
+
+/// The fill-reducing ordering of the Newton systems' Cholesky factorisations
+/// (`solver.ordering`).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Deserialize, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum OrderingSpec {
+    /// Nested dissection for 3D systems above 30 000 unknowns, approximate minimum degree
+    /// otherwise.
+    #[default]
+    Auto,
+    /// Approximate minimum degree (faer's).
+    Amd,
+    /// Nested dissection (METIS), on the D×D blocks of the unknowns.
+    NestedDissection,
 }
 
 /// The Newton direction's linear solver (`solver.linear`).
@@ -278,6 +295,7 @@ impl Default for SolverSpec {
             reuse_hessian_below: 0.0,
             retry_other_projection: true,
             max_substeps: 1024,
+            ordering: OrderingSpec::Auto,
         }
     }
 }
