@@ -248,8 +248,7 @@ pub struct SolverSpec {
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Deserialize, Serialize)]
 #[serde(rename_all = "snake_case")]
 pub enum OrderingSpec {
-    /// Nested dissection for 3D systems above 30 000 unknowns, approximate minimum degree
-    /// otherwise.
+    /// Nested dissection in 3D, approximate minimum degree in 2D.
     #[default]
     Auto,
     /// Approximate minimum degree (faer's).
