@@ -601,8 +601,40 @@ impl<const D: usize> World<D> {
     /// Reject bodies that start overlapping (BFEMP eq. 15): a particle or FEM vertex inside (or on
     /// the boundary of) another body's elements, or MPM bodies whose particles interleave.
     fn check_overlaps(&self) -> Result<(), SimError> {
+        let bbox = |x: &[SVector<f64, D>]| {
+            x.first()
+                .map(|f| x.iter().fold((*f, *f), |(l, h), v| (l.inf(v), h.sup(v))))
+        };
+        let body_box: Vec<_> = self.fem.iter().map(|b| bbox(&b.x)).collect();
+        let mpm_box: Vec<_> = self.mpm.as_ref().map_or_else(Vec::new, |m| {
+            m.bodies
+                .iter()
+                .map(|b| bbox(&m.x[b.range.0..b.range.1]))
+                .collect()
+        });
         for pair in &self.pairs {
+            if self.interrupted() {
+                return Err(SimError::Interrupted {
+                    step: 0,
+                    time: 0.0,
+                });
+            }
             let target = &self.fem[pair.facets_of];
+            // Bodies whose boxes are apart cannot overlap or touch: skip them at once (many
+            // bodies far apart cost a box test each, not a point-location table each).
+            let points_box = match &pair.points {
+                Points::Mpm { range } => self
+                    .mpm
+                    .as_ref()
+                    .and_then(|m| m.bodies.iter().position(|b| b.range == *range))
+                    .and_then(|k| mpm_box[k]),
+                Points::Fem { body } => body_box[*body],
+            };
+            if let (Some((pl, ph)), Some((tl, th))) = (points_box, body_box[pair.facets_of])
+                && (0..D).any(|a| ph[a] < tl[a] || th[a] < pl[a])
+            {
+                continue;
+            }
             let points: Vec<SVector<f64, D>> = match &pair.points {
                 Points::Mpm { range } => self
                     .mpm
