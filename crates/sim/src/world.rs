@@ -614,10 +614,7 @@ impl<const D: usize> World<D> {
         });
         for pair in &self.pairs {
             if self.interrupted() {
-                return Err(SimError::Interrupted {
-                    step: 0,
-                    time: 0.0,
-                });
+                return Err(SimError::Interrupted { step: 0, time: 0.0 });
             }
             let target = &self.fem[pair.facets_of];
             // Bodies whose boxes are apart cannot overlap or touch: skip them at once (many
