@@ -367,7 +367,7 @@ impl<const D: usize> World<D> {
             .into_iter()
             .map(|(a, b)| {
                 let (a, b) = (&self.fem[a], &self.fem[b]);
-                crate::overlap::crossings(a, &a.x, b, &b.x, false).0
+                crate::overlap::crossings(a, &a.x, b, &b.x, crate::overlap::Meeting::Crossing).0
             })
             .sum()
     }

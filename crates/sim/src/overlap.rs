@@ -19,7 +19,7 @@ use femp_contact::broad_phase::{self, Candidates};
 use femp_contact::intersect::{self, Intersection};
 use nalgebra::{SVector, Vector2, Vector3};
 
-use crate::bodies::{FemBody, inside_elements};
+use crate::bodies::{FemBody, inside_elements, point_facet_distance};
 
 /// The boundary edges of a body's boundary facets (2D: the facets; 3D: each edge once).
 pub(crate) fn boundary_edges<const D: usize>(facets: &[[u32; 3]]) -> Vec<[u32; 2]> {
@@ -45,15 +45,29 @@ pub(crate) struct Crossing<const D: usize> {
     pub near: SVector<f64, D>,
 }
 
+/// How [`crossings`] counts an edge and a facet that meet.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(crate) enum Meeting {
+    /// Only a proper crossing counts, however shallow (the per-step penetration count).
+    Crossing,
+    /// Touching counts as well (BFEMP: a distance of 0 is infeasible).
+    OrTouching,
+    /// A crossing counts only if it is deeper than the given length: an edge and a facet laid
+    /// against each other and then placed by a rotation cross by round-off (a block resting on a
+    /// rotated ramp). The depth is the smallest distance from an end of the edge to the facet
+    /// or from a vertex of the facet to the edge — how far one of them would have to move for
+    /// the crossing to become a touch.
+    DeeperThan(f64),
+}
+
 /// The boundary crossings of bodies `a` (positions `xa`) and `b` (`xb`): the number of
-/// crossing (edge, facet) pairs both ways, and the first. With `touching_is_crossing`, meeting
-/// without crossing counts as well (BFEMP: a distance of 0 is infeasible).
+/// crossing (edge, facet) pairs both ways, and the first, counted as `meeting` says.
 pub(crate) fn crossings<const D: usize>(
     a: &FemBody<D>,
     xa: &[SVector<f64, D>],
     b: &FemBody<D>,
     xb: &[SVector<f64, D>],
-    touching_is_crossing: bool,
+    meeting: Meeting,
 ) -> (usize, Option<Crossing<D>>) {
     let mut count = 0;
     let mut first = None;
@@ -87,9 +101,15 @@ pub(crate) fn crossings<const D: usize>(
                             &t(&xf[v[2] as usize]),
                         )
                     };
-                    if hit == Intersection::Crossing
-                        || touching_is_crossing && hit == Intersection::Touching
-                    {
+                    let counts = match (hit, meeting) {
+                        (Intersection::Crossing, Meeting::DeeperThan(tol)) => {
+                            crossing_depth::<D>(&p0[k], &p1[k], &v, xf) > tol
+                        }
+                        (Intersection::Crossing, _) => true,
+                        (Intersection::Touching, Meeting::OrTouching) => true,
+                        _ => false,
+                    };
+                    if counts {
                         count += 1;
                         if first.is_none() {
                             first = Some(Crossing {
@@ -109,6 +129,21 @@ pub(crate) fn crossings<const D: usize>(
         one_way(b, xb, a, xa);
     }
     (count, first)
+}
+
+/// How far an edge `p0`–`p1` crossing facet `f` of positions `x` reaches past it: the smallest
+/// distance from an end of the edge to the facet or from a vertex of the facet to the edge.
+fn crossing_depth<const D: usize>(
+    p0: &SVector<f64, D>,
+    p1: &SVector<f64, D>,
+    f: &[u32; 3],
+    x: &[SVector<f64, D>],
+) -> f64 {
+    let ends = point_facet_distance(p0, f, x).min(point_facet_distance(p1, f, x));
+    f[..D]
+        .iter()
+        .map(|&v| femp_contact::distance::point_edge::sq_dist(&x[v as usize], p0, p1).sqrt())
+        .fold(ends, f64::min)
 }
 
 /// The first element of `a` (positions `xa`) whose centroid lies inside `b` (positions `xb`):

@@ -17,6 +17,7 @@ use crate::augury::AuguryState;
 use crate::build::{sample_shape, transform_fn};
 use crate::error::{SimError, invalid};
 use crate::motion::{Motion, angular_components};
+use crate::overlap::Meeting;
 use crate::scene::mesh::fem_mesh;
 use crate::scene::{
     BarrierHessianSpec, BodySpec, IntegratorSpec, MaterialSpec, ModelSpec, Scene, TransferSpec,
@@ -827,7 +828,18 @@ fn fem_pair_overlap<const D: usize>(
         b: b.name.clone(),
         detail,
     };
-    let (n, first) = crate::overlap::crossings(a, &a.x, b, &b.x, !touching_allowed);
+    // Touching allowed (augury): a crossing within the round-off of placed meshes is a touch,
+    // with the tolerance `points_inside` uses for a point on the boundary.
+    let meeting = if touching_allowed {
+        let scale = |x: &FemBody<D>| {
+            let (lo, hi) = x.mesh.bounding_box();
+            (hi - lo).norm()
+        };
+        Meeting::DeeperThan(1e-9 * scale(a).min(scale(b)))
+    } else {
+        Meeting::OrTouching
+    };
+    let (n, first) = crate::overlap::crossings(a, &a.x, b, &b.x, meeting);
     if let Some(c) = first {
         return Err(err(format!(
             "their boundaries {} ({n} edge–facet pair(s)); the first near {:?} (boundary edge {} \

@@ -649,6 +649,29 @@ fn bodies_whose_boundaries_cross_or_coincide_are_rejected() {
     assert!(e.contains("boundaries cross"), "{e}");
 }
 
+/// A block resting on a ramp, both placed by the same rotation (the augury ramp of §3.3 as a
+/// scene), crosses it by round-off: an augury scene accepts it as touching. Sunk by 1e-6 m it
+/// is refused, with or without the rotation.
+#[test]
+fn a_block_resting_on_a_rotated_ramp_starts_touching() {
+    let scene = |sink: f64, deg: f64| {
+        json!({ "dimension": 2, "method": "augury", "time": { "dt": 1e-4, "duration": 2e-4 },
+            "bodies": [
+                { "kind": "fem", "name": "ramp",
+                  "mesh": { "rectangle": { "min": [0, -0.25], "max": [4, 0], "cells": [4, 1] } },
+                  "material": { "E": 1e10, "nu": 0.3, "rho": 1e6 },
+                  "transform": { "rotate_deg": deg } },
+                { "kind": "fem", "name": "block",
+                  "mesh": { "rectangle": { "min": [0.5, -sink], "max": [1.5, 1.0 - sink], "cells": [1, 1] } },
+                  "material": { "E": 1e10, "nu": 0.3, "rho": 1e6 },
+                  "transform": { "rotate_deg": deg } } ] })
+    };
+    for deg in [-30.0, -20.0, 0.0, 17.0] {
+        assert_eq!(error_of(&scene(0.0, deg), Path::new(".")), None, "{deg}°");
+        expect_error(&scene(1e-6, deg), &["`ramp` and `block` start overlapping"]);
+    }
+}
+
 /// The penetration metric counts crossing boundaries too: two bars moved across each other
 /// (no vertex inside either) are `penetrations` > 0, apart 0.
 #[test]
