@@ -72,8 +72,10 @@ pub trait Objective {
     fn begin_iteration(&mut self, _x: &[f64]) {}
     /// `E(x)`; `+∞` or NaN for infeasible points (they make the line search backtrack).
     fn energy(&mut self, x: &[f64]) -> f64;
-    /// `∇E(x)` into `g` (overwrite). In a Newton iteration it is called *after* the Hessian
-    /// at the same `x` (the solver factorises the Hessian on another thread meanwhile).
+    /// `∇E(x)` into `g` (overwrite). In a Newton iteration it is usually called after the
+    /// Hessian at the same `x` (the solver factorises the Hessian on another thread meanwhile);
+    /// when the last Hessian may be reused it comes first, followed by
+    /// [`Objective::hessian_terms_unchanged`]. An objective must not depend on the order.
     fn gradient(&mut self, x: &[f64], g: &mut [f64]);
     /// A positive semi-definite approximation of `∇²E(x)` as triplets, appended to `h` (cleared
     /// by the caller). Only the upper triangle counts (row ≤ column; duplicates summed):

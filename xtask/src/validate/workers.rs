@@ -86,8 +86,15 @@ pub(super) fn run_workers(
         // missing outcome): both show in the report.
         println!("worker {k} finished ({status})");
     }
-    for r in relays {
-        let _ = r.join();
+    for (k, r) in relays.into_iter().enumerate() {
+        // Two relays per worker (stdout, stderr): a panic there lost lines of its log.
+        r.join().map_err(|_| {
+            anyhow::anyhow!(
+                "the {} relay of worker {} panicked: its log is incomplete",
+                if k % 2 == 0 { "stdout" } else { "stderr" },
+                k / 2
+            )
+        })?;
     }
     Ok(())
 }
