@@ -90,17 +90,22 @@ pub fn rectangle(
     let mut cells = Vec::with_capacity(2 * nx * ny);
     for j in 0..ny {
         for i in 0..nx {
-            let (a, b, c, d) = (id(i, j), id(i + 1, j), id(i + 1, j + 1), id(i, j + 1));
-            if (i + j) % 2 == 0 {
-                cells.push([a, b, c, usize::MAX]);
-                cells.push([a, c, d, usize::MAX]);
-            } else {
-                cells.push([a, b, d, usize::MAX]);
-                cells.push([b, c, d, usize::MAX]);
-            }
+            let quad = [id(i, j), id(i + 1, j), id(i + 1, j + 1), id(i, j + 1)];
+            cells.extend(split_quad(quad, (i + j) % 2 == 0));
         }
     }
     Mesh::new(v, cells)
+}
+
+/// The two triangles of a quadrilateral `[a, b, c, d]` (in order around it), split along
+/// `a`–`c` or, with `along_ac` false, along `b`–`d` (alternating the diagonal cell by cell
+/// keeps a structured mesh free of a preferred direction).
+fn split_quad([a, b, c, d]: [usize; 4], along_ac: bool) -> [[usize; 4]; 2] {
+    if along_ac {
+        [[a, b, c, usize::MAX], [a, c, d, usize::MAX]]
+    } else {
+        [[a, b, d, usize::MAX], [b, c, d, usize::MAX]]
+    }
 }
 
 /// Box `[min, max]` with `nx × ny × nz` cells, each split into 6 tetrahedra along its main
@@ -286,14 +291,8 @@ fn polar(
     let mut cells = Vec::with_capacity(2 * n_r * n_theta);
     for i in 0..n_r {
         for m in 0..n_theta {
-            let (a, b, c, d) = (id(i, m), id(i + 1, m), id(i + 1, m + 1), id(i, m + 1));
-            if (i + m) % 2 == 0 {
-                cells.push([a, b, c, usize::MAX]);
-                cells.push([a, c, d, usize::MAX]);
-            } else {
-                cells.push([a, b, d, usize::MAX]);
-                cells.push([b, c, d, usize::MAX]);
-            }
+            let quad = [id(i, m), id(i + 1, m), id(i + 1, m + 1), id(i, m + 1)];
+            cells.extend(split_quad(quad, (i + m) % 2 == 0));
         }
     }
     Mesh::new_oriented(v, cells)
@@ -331,14 +330,8 @@ pub fn curve_strip(
     let mut cells = Vec::with_capacity(2 * nx * ny);
     for j in 0..ny {
         for i in 0..nx {
-            let (a, b, c, d) = (id(i, j), id(i + 1, j), id(i + 1, j + 1), id(i, j + 1));
-            if (i + j) % 2 == 0 {
-                cells.push([a, b, c, usize::MAX]);
-                cells.push([a, c, d, usize::MAX]);
-            } else {
-                cells.push([a, b, d, usize::MAX]);
-                cells.push([b, c, d, usize::MAX]);
-            }
+            let quad = [id(i, j), id(i + 1, j), id(i + 1, j + 1), id(i, j + 1)];
+            cells.extend(split_quad(quad, (i + j) % 2 == 0));
         }
     }
     Mesh::new_oriented(v, cells)
