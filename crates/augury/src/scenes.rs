@@ -371,6 +371,8 @@ fn check_cells(cells: usize) -> Result<usize, AuguryError> {
 pub struct RampRun {
     /// `(t, s)`: time and the block's centre-of-mass displacement along the ramp.
     pub displacement: Vec<(f64, f64)>,
+    /// `(t, v)`: time and the block's centre-of-mass velocity along the ramp, at the same times.
+    pub velocity: Vec<(f64, f64)>,
     /// The analytic acceleration `g (sin θ − μ cos θ)` (0 if it sticks).
     pub analytic_acceleration: f64,
     /// Contact forces on the block from `t_end / 4` on (after the first settling), summed over
@@ -386,6 +388,40 @@ pub struct RampRun {
     pub at_coulomb_limit: f64,
     /// Steps taken.
     pub steps: usize,
+}
+
+impl RampRun {
+    /// The block's acceleration along the ramp from a least-squares line through its velocity
+    /// over `t ≥ from` (the second half of the run: `from = t_end / 2`). Less sensitive than the
+    /// end displacement to the start, where the block settles onto the ramp.
+    pub fn fitted_acceleration(&self, from: f64) -> f64 {
+        let pts: Vec<(f64, f64)> = self
+            .velocity
+            .iter()
+            .copied()
+            .filter(|p| p.0 >= from)
+            .collect();
+        let n = pts.len() as f64;
+        if pts.len() < 2 {
+            return f64::NAN;
+        }
+        let (mt, mv) = pts
+            .iter()
+            .fold((0.0, 0.0), |(a, b), p| (a + p.0 / n, b + p.1 / n));
+        let (mut stt, mut stv) = (0.0, 0.0);
+        for &(t, v) in &pts {
+            stt += (t - mt) * (t - mt);
+            stv += (t - mt) * (v - mv);
+        }
+        stv / stt
+    }
+
+    /// Relative error of the end displacement against `½ a t²` (`a` analytic).
+    pub fn displacement_error(&self) -> f64 {
+        let (t, s) = *self.displacement.last().unwrap_or(&(0.0, 0.0));
+        let exact = 0.5 * self.analytic_acceleration * t * t;
+        (s - exact) / exact
+    }
 }
 
 /// §3.3 in 2D: a 1 × 1 block resting on a 4 × 0.25 ramp tilted 30°, both ρ = 1e6, E = 1e10,
@@ -413,6 +449,68 @@ pub fn ramp_with_tau(
     tau: f64,
     iterations: usize,
 ) -> Result<RampRun, AuguryError> {
+    ramp_with(&RampSettings {
+        tau,
+        iterations,
+        kind,
+        ..RampSettings::new(h, mu, t_end, dt)
+    })
+}
+
+/// Every setting of the §3.3 ramp: the paper's couplings one by one (for the study of why the
+/// ramp does not converge past the paper's meshes, `examples/ramp_study.rs`).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct RampSettings {
+    /// Mesh size (cells per unit length 1/h).
+    pub h: f64,
+    /// Coulomb coefficient.
+    pub mu: f64,
+    /// End time (s).
+    pub t_end: f64,
+    /// Time step Δt.
+    pub dt: f64,
+    /// Look-ahead τ.
+    pub tau: f64,
+    /// Augury (friction) iterations N.
+    pub iterations: usize,
+    /// PIC or APIC.
+    pub kind: TransferKind,
+    /// Background spline.
+    pub kernel: Kernel,
+    /// Background grid spacing over h.
+    pub grid_ratio: f64,
+}
+
+impl RampSettings {
+    /// The validation's 2D rows: APIC, quadratic spline, grid 0.5 h, τ = Δt, 10 iterations.
+    pub fn new(h: f64, mu: f64, t_end: f64, dt: f64) -> Self {
+        Self {
+            h,
+            mu,
+            t_end,
+            dt,
+            tau: dt,
+            iterations: 10,
+            kind: TransferKind::Apic,
+            kernel: Kernel::Quadratic,
+            grid_ratio: 0.5,
+        }
+    }
+}
+
+/// The ramp of [`ramp`] with every setting given.
+pub fn ramp_with(settings: &RampSettings) -> Result<RampRun, AuguryError> {
+    let &RampSettings {
+        h,
+        mu,
+        t_end,
+        dt,
+        tau,
+        iterations,
+        kind,
+        kernel,
+        grid_ratio,
+    } = settings;
     const E: f64 = 1e10;
     const NU: f64 = 0.3;
     const RHO: f64 = 1e6;
@@ -439,7 +537,7 @@ pub fn ramp_with_tau(
         ramp_body.fixed[k] = (local_y + 0.25).abs() < 1e-9;
     }
     let block_body = ExplicitBody::new("block", &block_mesh, mat, RHO)?;
-    let transfer = Transfer::<2>::new(0.5 * h, Kernel::Quadratic, kind)?;
+    let transfer = Transfer::<2>::new(grid_ratio * h, kernel, kind)?;
     let contact = AuguryContact::new(
         transfer,
         AuguryParams {
@@ -464,6 +562,7 @@ pub fn ramp_with_tau(
         .filter(|&k| normal.dot(&sys.bodies[1].x[k]).abs() < 1e-9)
         .collect();
     let mut displacement = vec![(0.0, 0.0)];
+    let mut velocity = vec![(0.0, 0.0)];
     let record = ((t_end / dt) / 200.0).ceil().max(1.0) as usize;
     let mut steps = 0;
     let (mut f_n, mut f_t, mut spread, mut counted) = (0.0, 0.0, 0.0, 0usize);
@@ -475,6 +574,9 @@ pub fn ramp_with_tau(
         if steps % record == 0 {
             let d = (sys.bodies[1].centre_of_mass() - c0).dot(&dir);
             displacement.push((sys.time, d));
+            let b = &sys.bodies[1];
+            let momentum: Vector2<f64> = b.v.iter().zip(&b.mass).map(|(v, m)| v * *m).sum();
+            velocity.push((sys.time, momentum.dot(&dir) / b.total_mass()));
         }
         if sys.time < 0.25 * t_end {
             continue;
@@ -507,6 +609,7 @@ pub fn ramp_with_tau(
     let weight = sys.bodies[1].total_mass() * G * c;
     Ok(RampRun {
         displacement,
+        velocity,
         analytic_acceleration: (G * (s - mu * c)).max(0.0),
         friction_ratio: f_t / f_n,
         normal_load: f_n / window.max(1) as f64 / weight,

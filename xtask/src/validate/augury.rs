@@ -744,14 +744,17 @@ pub fn ramp_experiment(ctx: &Ctx) -> Result<Outcome> {
         let exact = 0.5 * r.analytic_acceleration * t * t;
         errors.push((s - exact) / exact);
         coulomb.push((level(h), r.friction_ratio));
+        let a = r.fitted_acceleration(0.1);
         out.checks.push(Check::info(
             &format!(
-                "APIC N = 10, h = {h}: displacement error (tangential / normal contact force on \
-                 the block while sliding)"
+                "APIC N = 10, h = {h}: displacement error; acceleration error from a velocity fit \
+                 over t ∈ [0.1, 0.2] s (tangential / normal contact force on the block while \
+                 sliding)"
             ),
             format!(
-                "{:+.1} % ({:.3})",
+                "{:+.1} %; {:+.1} % ({:.3})",
                 100.0 * (s - exact) / exact,
+                100.0 * (a - r.analytic_acceleration) / r.analytic_acceleration,
                 r.friction_ratio
             ),
             format!("→ 0 under refinement ({mu})"),

@@ -188,3 +188,55 @@ fn converged_friction_iterations_end_inside_the_coulomb_cone_not_on_its_edge() {
         "tangential / normal {ratio} (μ = {mu}): {f:?}"
     );
 }
+
+/// The study's settings reach the scene (`examples/ramp_study.rs`): a coarser grid and the
+/// 4-node spline change the run, the defaults reproduce `ramp`; and the velocity record is the
+/// derivative of the displacement record, so the fitted acceleration is the block's.
+#[test]
+fn ramp_settings_reach_the_scene_and_the_velocity_fit_is_the_blocks_acceleration() {
+    use femp_augury::scenes::{RampSettings, ramp_with};
+    use femp_kernels::Kernel;
+    let (h, t_end) = (0.5, 0.05);
+    let base = RampSettings::new(h, 0.0, t_end, 2.5e-4 * h);
+    let a = ramp_with(&base).unwrap();
+    let b = ramp(h, 0.0, TransferKind::Apic, t_end, 2.5e-4 * h, 10).unwrap();
+    assert_eq!(a.displacement, b.displacement);
+    let end = |r: &femp_augury::scenes::RampRun| r.displacement.last().unwrap().1;
+    for changed in [
+        RampSettings {
+            grid_ratio: 1.0,
+            ..base
+        },
+        RampSettings {
+            kernel: Kernel::Quadratic4,
+            ..base
+        },
+    ] {
+        let c = ramp_with(&changed).unwrap();
+        assert!(
+            (end(&c) - end(&a)).abs() > 1e-6,
+            "{changed:?} gave the same run"
+        );
+    }
+    // Velocity against the displacement's finite differences (central, recorded each 1/200 of
+    // the run): the same motion.
+    let (d, v) = (&a.displacement, &a.velocity);
+    assert_eq!(d.len(), v.len());
+    for k in 1..d.len() - 1 {
+        let fd = (d[k + 1].1 - d[k - 1].1) / (d[k + 1].0 - d[k - 1].0);
+        assert!(
+            (fd - v[k].1).abs() <= 0.02 * v[k].1.abs().max(0.05),
+            "t = {}: velocity {} against displacement slope {fd}",
+            v[k].0,
+            v[k].1
+        );
+    }
+    // A line through v = 3 + 7 t is fitted exactly.
+    let line = femp_augury::scenes::RampRun {
+        velocity: (0..20)
+            .map(|k| (k as f64 * 0.01, 3.0 + 0.07 * k as f64))
+            .collect(),
+        ..a.clone()
+    };
+    assert!((line.fitted_acceleration(0.05) - 7.0).abs() < 1e-12);
+}
