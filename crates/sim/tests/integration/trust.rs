@@ -16,6 +16,23 @@ fn femp() -> Command {
     Command::new(env!("CARGO_BIN_EXE_femp"))
 }
 
+/// `femp run SCENE --out OUT --no-frames -q EXTRA…` started in the background (stderr piped).
+fn spawn_run(scene: &str, out: &Path, extra: &[&str]) -> Child {
+    femp()
+        .args([
+            "run",
+            scene,
+            "--out",
+            out.to_str().unwrap(),
+            "--no-frames",
+            "-q",
+        ])
+        .args(extra)
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap()
+}
+
 fn run_femp(args: &[&str]) -> Output {
     femp().args(args).output().expect("femp runs")
 }
@@ -112,18 +129,7 @@ fn signals_stop_a_run_with_status_interrupted_and_whole_rows() {
     let p = scene_file(dir.path(), "long.json", &block(1000.0));
     for sig in ["TERM", "HUP", "INT"] {
         let out = dir.path().join(format!("out_{sig}"));
-        let mut child = femp()
-            .args([
-                "run",
-                &p,
-                "--out",
-                out.to_str().unwrap(),
-                "--no-frames",
-                "-q",
-            ])
-            .stderr(Stdio::piped())
-            .spawn()
-            .unwrap();
+        let mut child = spawn_run(&p, &out, &[]);
         assert!(
             wait_for(60, || rows_so_far(&out) >= 5),
             "{sig}: no progress"
@@ -650,18 +656,7 @@ fn every_catchable_end_leaves_a_final_summary_and_no_temporaries() {
     // Two SIGTERMs 50 ms apart.
     let long = scene_file(dir.path(), "long.json", &block(1000.0));
     let out = dir.path().join("twice");
-    let mut child = femp()
-        .args([
-            "run",
-            &long,
-            "--out",
-            out.to_str().unwrap(),
-            "--no-frames",
-            "-q",
-        ])
-        .stderr(Stdio::piped())
-        .spawn()
-        .unwrap();
+    let mut child = spawn_run(&long, &out, &[]);
     assert!(wait_for(60, || rows_so_far(&out) >= 5), "no progress");
     signal(&child, "TERM");
     std::thread::sleep(Duration::from_millis(50));
@@ -673,25 +668,16 @@ fn every_catchable_end_leaves_a_final_summary_and_no_temporaries() {
     // A signal while large pictures are drawn: the run stops before drawing the next, and an
     // animation without a frame is not left behind.
     let out = dir.path().join("pictures");
-    let mut child = femp()
-        .args([
-            "run",
-            &long,
-            "--out",
-            out.to_str().unwrap(),
-            "--no-frames",
-            "-q",
-            "--pictures",
-            "--picture-size",
-            "4096x4096",
-            "--key-frames",
-            "1000",
-            "--gif-frames",
-            "10000",
-        ])
-        .stderr(Stdio::piped())
-        .spawn()
-        .unwrap();
+    let pictures = [
+        "--pictures",
+        "--picture-size",
+        "4096x4096",
+        "--key-frames",
+        "1000",
+        "--gif-frames",
+        "10000",
+    ];
+    let mut child = spawn_run(&long, &out, &pictures);
     assert!(wait_for(120, || rows_so_far(&out) >= 1), "no progress");
     signal(&child, "TERM");
     assert_eq!(wait_exit(&mut child, 120).code(), Some(130));
