@@ -127,7 +127,7 @@ fn main() -> std::io::Result<()> {
                 match ramp_with(&s) {
                     Ok(r) => {
                         let a = r.fitted_acceleration(0.5 * t_end);
-                        let ea = (a - r.analytic_acceleration) / r.analytic_acceleration;
+                        let ea = r.acceleration_error(0.5 * t_end);
                         let ed = r.displacement_error();
                         let secs = clock.elapsed().as_secs_f64();
                         let order = prev

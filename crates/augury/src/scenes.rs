@@ -416,6 +416,11 @@ impl RampRun {
         stv / stt
     }
 
+    /// Relative error of [`Self::fitted_acceleration`] against the analytic acceleration.
+    pub fn acceleration_error(&self, from: f64) -> f64 {
+        (self.fitted_acceleration(from) - self.analytic_acceleration) / self.analytic_acceleration
+    }
+
     /// Relative error of the end displacement against `½ a t²` (`a` analytic).
     pub fn displacement_error(&self) -> f64 {
         let (t, s) = *self.displacement.last().unwrap_or(&(0.0, 0.0));

@@ -740,11 +740,8 @@ pub fn ramp_experiment(ctx: &Ctx) -> Result<Outcome> {
     let mut coulomb = Vec::new();
     for (k, &h) in hs.iter().enumerate() {
         let r = ramp(h, mu, TransferKind::Apic, 0.2, 2.5e-4 * h, 10)?;
-        let (t, s) = *r.displacement.last().expect("recorded");
-        let exact = 0.5 * r.analytic_acceleration * t * t;
-        errors.push((s - exact) / exact);
+        errors.push(r.displacement_error());
         coulomb.push((level(h), r.friction_ratio));
-        let a = r.fitted_acceleration(0.1);
         out.checks.push(Check::info(
             &format!(
                 "APIC N = 10, h = {h}: displacement error; acceleration error from a velocity fit \
@@ -753,8 +750,8 @@ pub fn ramp_experiment(ctx: &Ctx) -> Result<Outcome> {
             ),
             format!(
                 "{:+.1} %; {:+.1} % ({:.3})",
-                100.0 * (s - exact) / exact,
-                100.0 * (a - r.analytic_acceleration) / r.analytic_acceleration,
+                100.0 * r.displacement_error(),
+                100.0 * r.acceleration_error(0.1),
                 r.friction_ratio
             ),
             format!("→ 0 under refinement ({mu})"),
@@ -819,8 +816,6 @@ pub fn ramp_experiment(ctx: &Ctx) -> Result<Outcome> {
         let mut points = Vec::new();
         for &h in hs {
             let r = ramp(h, 0.0, TransferKind::Apic, 0.2, 2.5e-4 * h, iterations)?;
-            let (t, s) = *r.displacement.last().expect("recorded");
-            let exact = 0.5 * r.analytic_acceleration * t * t;
             out.checks.push(Check::info(
                 &format!(
                     "μ = 0, APIC N = {iterations}, h = {h}: tangential / normal contact force \
@@ -829,7 +824,7 @@ pub fn ramp_experiment(ctx: &Ctx) -> Result<Outcome> {
                 format!(
                     "{:.3} ({:+.1} %)",
                     r.friction_ratio,
-                    100.0 * (s - exact) / exact
+                    100.0 * r.displacement_error()
                 ),
                 "0 (frictionless)".into(),
             ));
@@ -872,13 +867,11 @@ pub fn ramp_experiment(ctx: &Ctx) -> Result<Outcome> {
     ));
     ramp_3d(ctx, &mut out, &mut series3)?;
     let r1 = ramp(0.25, mu, TransferKind::Apic, 0.2, 2.5e-4 * 0.25, 1)?;
-    let (t, s) = *r1.displacement.last().expect("recorded");
-    let exact = 0.5 * r1.analytic_acceleration * t * t;
     out.checks.push(Check::info(
         "APIC N = 1 (paper), h = 0.25: displacement error (tangential / normal contact force)",
         format!(
             "{:+.1} % ({:.3})",
-            100.0 * (s - exact) / exact,
+            100.0 * r1.displacement_error(),
             r1.friction_ratio
         ),
         format!("≈ 0 (paper, Fig. 11) ({mu})"),
