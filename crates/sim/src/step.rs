@@ -15,28 +15,26 @@ use crate::scene::BoundaryCondition;
 use crate::scene::spec::{LinearSpec, OrderingSpec, ProjectionSpec};
 use crate::world::{MethodState, Transfer, World};
 
-/// What a BFEMP step changes, kept to solve the step again in substeps.
-type SavedMpm<const D: usize> = (
-    Vec<SVector<f64, D>>,
-    Vec<SVector<f64, D>>,
-    Vec<SMatrix<f64, D, D>>,
-    Vec<SMatrix<f64, D, D>>,
-    Vec<SVector<f64, D>>,
-    Vec<SVector<f64, D>>,
-);
-
-/// A BFEMP world's state at the start of a step ([`World::save`]).
+/// A BFEMP world's state at the start of a step ([`World::save`]): the positions (also the
+/// start of the step's straight paths) and what else a step changes, to solve it again in
+/// substeps.
 pub(crate) struct Saved<const D: usize> {
     time: f64,
     step: usize,
+    at: crate::sweep::Positions<D>,
+    /// MPM: v, B, F, a, contact force.
     mpm: Option<SavedMpm<D>>,
-    #[allow(clippy::type_complexity)]
-    fem: Vec<(
-        Vec<SVector<f64, D>>,
-        Vec<SVector<f64, D>>,
-        Vec<SVector<f64, D>>,
-        Vec<SVector<f64, D>>,
-    )>,
+    /// Each FEM body: v, a, contact force.
+    fem: Vec<[Vec<SVector<f64, D>>; 3]>,
+}
+
+/// The particles' state besides their positions.
+struct SavedMpm<const D: usize> {
+    v: Vec<SVector<f64, D>>,
+    b: Vec<SMatrix<f64, D, D>>,
+    f: Vec<SMatrix<f64, D, D>>,
+    a: Vec<SVector<f64, D>>,
+    contact_force: Vec<SVector<f64, D>>,
 }
 
 /// The unknowns of one step and what they start from (see [`World::setup`]).
@@ -68,7 +66,6 @@ impl<const D: usize> World<D> {
     /// the deepest path named and the world back at the step's start. The report says how many
     /// substeps the step took and counts the work of every attempt.
     pub fn step(&mut self) -> Result<StepReport, SimError> {
-        let before = self.positions();
         let integrator = match &mut self.method {
             MethodState::Bfemp(b) => b.integrator,
             MethodState::Augury(aug) => {
@@ -83,6 +80,8 @@ impl<const D: usize> World<D> {
                         time: self.time,
                     });
                 }
+                // (Fields, not `self.positions()`: `aug` borrows the method state.)
+                let before = positions_of(self.mpm.as_ref(), &self.fem);
                 let mut report = aug.step(&mut self.fem, self.step, self.time)?;
                 self.time = aug.system.time;
                 self.step += 1;
@@ -93,7 +92,7 @@ impl<const D: usize> World<D> {
         // BFEMP: the Newton solver checks the interrupt flag before every iteration.
         let saved = self.save();
         let mut report = self.step_bfemp(integrator)?;
-        report.swept = self.sweep(&before);
+        report.swept = self.sweep(&saved.at);
         if report.swept.tunnelled == 0 {
             return Ok(report);
         }
@@ -189,27 +188,18 @@ impl<const D: usize> World<D> {
         Saved {
             time: self.time,
             step: self.step,
-            mpm: self.mpm.as_ref().map(|m| {
-                (
-                    m.x.clone(),
-                    m.v.clone(),
-                    m.b.clone(),
-                    m.f.clone(),
-                    m.a.clone(),
-                    m.contact_force.clone(),
-                )
+            at: self.positions(),
+            mpm: self.mpm.as_ref().map(|m| SavedMpm {
+                v: m.v.clone(),
+                b: m.b.clone(),
+                f: m.f.clone(),
+                a: m.a.clone(),
+                contact_force: m.contact_force.clone(),
             }),
             fem: self
                 .fem
                 .iter()
-                .map(|b| {
-                    (
-                        b.x.clone(),
-                        b.v.clone(),
-                        b.a.clone(),
-                        b.contact_force.clone(),
-                    )
-                })
+                .map(|b| [b.v.clone(), b.a.clone(), b.contact_force.clone()])
                 .collect(),
         }
     }
@@ -218,15 +208,15 @@ impl<const D: usize> World<D> {
     fn restore(&mut self, s: &Saved<D>) {
         self.time = s.time;
         self.step = s.step;
-        if let (Some(m), Some((x, v, b, f, a, c))) = (self.mpm.as_mut(), &s.mpm) {
-            m.x.clone_from(x);
-            m.v.clone_from(v);
-            m.b.clone_from(b);
-            m.f.clone_from(f);
-            m.a.clone_from(a);
-            m.contact_force.clone_from(c);
+        if let (Some(m), Some(saved)) = (self.mpm.as_mut(), &s.mpm) {
+            m.x.clone_from(&s.at.particles);
+            m.v.clone_from(&saved.v);
+            m.b.clone_from(&saved.b);
+            m.f.clone_from(&saved.f);
+            m.a.clone_from(&saved.a);
+            m.contact_force.clone_from(&saved.contact_force);
         }
-        for (body, (x, v, a, c)) in self.fem.iter_mut().zip(&s.fem) {
+        for ((body, x), [v, a, c]) in self.fem.iter_mut().zip(&s.at.fem).zip(&s.fem) {
             body.x.clone_from(x);
             body.v.clone_from(v);
             body.a.clone_from(a);
@@ -774,14 +764,22 @@ impl<const D: usize> World<D> {
     }
 }
 
+/// Where the particles of `mpm` and the vertices of `fem` are.
+fn positions_of<const D: usize>(
+    mpm: Option<&crate::bodies::Mpm<D>>,
+    fem: &[crate::bodies::FemBody<D>],
+) -> crate::sweep::Positions<D> {
+    crate::sweep::Positions {
+        particles: mpm.map_or_else(Vec::new, |m| m.x.clone()),
+        fem: fem.iter().map(|b| b.x.clone()).collect(),
+    }
+}
+
 /// The straight-path check of a step ([`crate::sweep`]) over this world's bodies.
 impl<const D: usize> World<D> {
     /// Where the particles and FEM vertices are now.
     pub fn positions(&self) -> crate::sweep::Positions<D> {
-        crate::sweep::Positions {
-            particles: self.mpm.as_ref().map_or_else(Vec::new, |m| m.x.clone()),
-            fem: self.fem.iter().map(|b| b.x.clone()).collect(),
-        }
+        positions_of(self.mpm.as_ref(), &self.fem)
     }
 
     /// The straight paths from `before` (an earlier [`World::positions`], normally the start of
@@ -790,7 +788,7 @@ impl<const D: usize> World<D> {
     /// body.
     pub fn sweep(&self, before: &crate::sweep::Positions<D>) -> crate::sweep::SweptReport {
         let mut report = crate::sweep::SweptReport::default();
-        let now = self.positions();
+        let particles_now = self.mpm.as_ref().map_or(&[][..], |m| &m.x[..]);
         // (points, facet body, names)
         let mut sets: Vec<(&crate::bodies::Points, usize, &str, &str)> = Vec::new();
         let augury_pairs: Vec<crate::bodies::Points>;
@@ -814,7 +812,7 @@ impl<const D: usize> World<D> {
             let (p0, p1, ids, particle): (Vec<_>, Vec<_>, Vec<usize>, bool) = match points {
                 crate::bodies::Points::Mpm { range } => (
                     before.particles[range.0..range.1].to_vec(),
-                    now.particles[range.0..range.1].to_vec(),
+                    particles_now[range.0..range.1].to_vec(),
                     (range.0..range.1).collect(),
                     true,
                 ),
@@ -822,20 +820,14 @@ impl<const D: usize> World<D> {
                     let vs = self.fem[*body].boundary.vertices();
                     (
                         vs.iter().map(|&v| before.fem[*body][v]).collect(),
-                        vs.iter().map(|&v| now.fem[*body][v]).collect(),
+                        vs.iter().map(|&v| self.fem[*body].x[v]).collect(),
                         vs.to_vec(),
                         false,
                     )
                 }
             };
             let body = &self.fem[facets_of];
-            let r = crate::sweep::sweep_against(
-                &p0,
-                &p1,
-                body,
-                &before.fem[facets_of],
-                &now.fem[facets_of],
-            );
+            let r = crate::sweep::sweep_against(&p0, &p1, body, &before.fem[facets_of], &body.x);
             report.entered += r.len();
             for crate::sweep::Entered {
                 k,

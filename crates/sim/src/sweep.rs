@@ -287,14 +287,14 @@ impl<const D: usize> SweptElements<D> {
         b1: &[SVector<f64, D>],
     ) -> bool {
         let cells = body.mesh.cells();
-        let idx: Vec<usize> = (0..=D).collect();
+        const IDX: [usize; 4] = [0, 1, 2, 3];
         self.bins.near(p).any(|e| {
             let c = &cells[e as usize];
-            let x: Vec<SVector<f64, D>> = c[..=D]
-                .iter()
-                .map(|&v| b0[v] + (b1[v] - b0[v]) * t)
-                .collect();
-            inside_simplex(p, &idx, &x)
+            let x: [SVector<f64, D>; 4] = std::array::from_fn(|k| {
+                let v = c[k.min(D)];
+                b0[v] + (b1[v] - b0[v]) * t
+            });
+            inside_simplex(p, &IDX[..=D], &x)
         })
     }
 }
