@@ -4,7 +4,10 @@
 //! "particles", each with an APIC matrix `B_p`).
 
 use femp_fem::{Boundary, ElasticBody, Material, Mesh, lumped_masses};
+use std::time::Instant;
+
 use nalgebra::{SMatrix, SVector, Vector3};
+use rayon::prelude::*;
 
 use crate::contact::AuguryContact;
 use crate::error::AuguryError;
@@ -151,6 +154,9 @@ pub struct PenaltyContact<const D: usize> {
     facets: Vec<[u32; 3]>,
     points: Vec<usize>,
     positions: Vec<SVector<f64, D>>,
+    /// Per vertex of the current body pair: its facet, barycentric weights and force.
+    #[allow(clippy::type_complexity)]
+    hits: Vec<Option<(u32, [f64; 3], SVector<f64, D>)>>,
     /// Active vertex–facet pairs in the last evaluation.
     pub active: usize,
 }
@@ -174,12 +180,16 @@ impl<const D: usize> PenaltyContact<D> {
             facets: Vec::new(),
             points: Vec::new(),
             positions: Vec::new(),
+            hits: Vec::new(),
             active: 0,
         })
     }
 }
 
-/// Closest point of facet `f` to `p`, with the barycentric weights of the facet's vertices.
+/// Closest point of facet `f` to `p`, with the barycentric weights of the facet's vertices —
+/// in plain double precision (a penalty force needs no exact predicates; the region tests of
+/// Ericson, *Real-Time Collision Detection* §5.1.5, for triangles). A triangle without area
+/// (which a valid mesh does not have) falls back to femp-contact's robust closest point.
 fn closest_on_facet<const D: usize>(
     p: &SVector<f64, D>,
     f: &[usize; 3],
@@ -189,18 +199,64 @@ fn closest_on_facet<const D: usize>(
         let (a, b) = (x[f[0]], x[f[1]]);
         let e = b - a;
         let t = ((p - a).dot(&e) / e.norm_squared()).clamp(0.0, 1.0);
-        (a + e * t, [1.0 - t, t, 0.0])
-    } else {
-        use femp_contact::distance::point_triangle;
-        let l = |q: &SVector<f64, D>| Vector3::new(q[0], q[1], q[D - 1]);
-        let (a, b, c) = (l(&x[f[0]]), l(&x[f[1]]), l(&x[f[2]]));
-        let q = point_triangle::closest_point(&l(p), &a, &b, &c);
-        let (u, v) = point_triangle::barycentric(&q, &a, &b, &c).unwrap_or((0.0, 0.0));
-        (
-            SVector::<f64, D>::from_fn(|i, _| q[if i < 2 { i } else { 2 }]),
-            [1.0 - u - v, u, v],
-        )
+        return (a + e * t, [1.0 - t, t, 0.0]);
     }
+    let l = |q: &SVector<f64, D>| Vector3::new(q[0], q[1], q[D - 1]);
+    let (p3, a, b, c) = (l(p), l(&x[f[0]]), l(&x[f[1]]), l(&x[f[2]]));
+    let w = closest_weights(&p3, &a, &b, &c).unwrap_or_else(|| {
+        use femp_contact::distance::point_triangle;
+        let q = point_triangle::closest_point(&p3, &a, &b, &c);
+        let (u, v) = point_triangle::barycentric(&q, &a, &b, &c).unwrap_or((0.0, 0.0));
+        [1.0 - u - v, u, v]
+    });
+    let q = a * w[0] + b * w[1] + c * w[2];
+    (SVector::<f64, D>::from_fn(|i, _| q[i.min(2)]), w)
+}
+
+/// Barycentric weights of the point of triangle `abc` closest to `p` (Voronoi regions of the
+/// vertices, then the edges, then the face); `None` for a triangle without area.
+fn closest_weights(
+    p: &Vector3<f64>,
+    a: &Vector3<f64>,
+    b: &Vector3<f64>,
+    c: &Vector3<f64>,
+) -> Option<[f64; 3]> {
+    let (ab, ac, ap) = (b - a, c - a, p - a);
+    let (d1, d2) = (ab.dot(&ap), ac.dot(&ap));
+    if d1 <= 0.0 && d2 <= 0.0 {
+        return Some([1.0, 0.0, 0.0]);
+    }
+    let bp = p - b;
+    let (d3, d4) = (ab.dot(&bp), ac.dot(&bp));
+    if d3 >= 0.0 && d4 <= d3 {
+        return Some([0.0, 1.0, 0.0]);
+    }
+    let vc = d1 * d4 - d3 * d2;
+    if vc <= 0.0 && d1 >= 0.0 && d3 <= 0.0 {
+        let t = d1 / (d1 - d3);
+        return Some([1.0 - t, t, 0.0]);
+    }
+    let cp = p - c;
+    let (d5, d6) = (ab.dot(&cp), ac.dot(&cp));
+    if d6 >= 0.0 && d5 <= d6 {
+        return Some([0.0, 0.0, 1.0]);
+    }
+    let vb = d5 * d2 - d1 * d6;
+    if vb <= 0.0 && d2 >= 0.0 && d6 <= 0.0 {
+        let t = d2 / (d2 - d6);
+        return Some([1.0 - t, 0.0, t]);
+    }
+    let va = d3 * d6 - d5 * d4;
+    if va <= 0.0 && d4 - d3 >= 0.0 && d5 - d6 >= 0.0 {
+        let t = (d4 - d3) / ((d4 - d3) + (d5 - d6));
+        return Some([0.0, 1.0 - t, t]);
+    }
+    let sum = va + vb + vc;
+    if !(sum > 0.0 && sum.is_finite()) {
+        return None;
+    }
+    let (v, w) = (vb / sum, vc / sum);
+    Some([1.0 - v - w, v, w])
 }
 
 /// Mass factor of the vertices of fully prescribed bodies under [`Obstacles::Kinematic`].
@@ -223,6 +279,36 @@ pub enum Obstacles {
     /// the iterations cannot hand the undone tangential change to the obstacle, and a block
     /// sliding frictionlessly down a rigid ramp sticks (measured, `docs/augury.md`).
     Kinematic,
+}
+
+/// Wall time of the phases of the last [`ExplicitSystem::step`] (s). Two clock reads per phase:
+/// about 50 ns a step, so they are always taken.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct StepTiming {
+    /// Elastic forces of every body (`∇Ψ`).
+    pub elastic_s: f64,
+    /// Contact: the augury correction (normals, gathering the boundary particles, the
+    /// transfers and iterations, scattering the result) and the penalty baseline's search and
+    /// forces.
+    pub contact_s: f64,
+    /// The whole step (the above, the time integration and any prescribed motion).
+    pub step_s: f64,
+}
+
+/// A saved state of an [`ExplicitSystem`] ([`ExplicitSystem::state`],
+/// [`ExplicitSystem::set_state`]).
+#[derive(Clone, Debug)]
+pub struct ExplicitState<const D: usize> {
+    #[allow(clippy::type_complexity)]
+    bodies: Vec<(
+        Vec<SVector<f64, D>>,
+        Vec<SVector<f64, D>>,
+        Vec<SVector<f64, D>>,
+    )>,
+    b: Vec<SMatrix<f64, D, D>>,
+    bdot: Vec<SMatrix<f64, D, D>>,
+    time: f64,
+    started: bool,
 }
 
 /// Parameters of the explicit system.
@@ -252,6 +338,8 @@ pub struct ExplicitSystem<const D: usize> {
     pub b: Vec<SMatrix<f64, D, D>>,
     /// Contact rate of `B_p` (its acceleration).
     pub bdot: Vec<SMatrix<f64, D, D>>,
+    /// Where the last step's time went.
+    pub timing: StepTiming,
     // Particle buffers.
     px: Vec<SVector<f64, D>>,
     pm: Vec<f64>,
@@ -278,6 +366,7 @@ impl<const D: usize> ExplicitSystem<D> {
             obstacles: Obstacles::Lumped,
             b: vec![SMatrix::zeros(); n],
             bdot: vec![SMatrix::zeros(); n],
+            timing: StepTiming::default(),
             px: Vec::with_capacity(n),
             pm: Vec::with_capacity(n),
             pn: Vec::with_capacity(n),
@@ -307,6 +396,7 @@ impl<const D: usize> ExplicitSystem<D> {
     /// Mechanical accelerations `−M⁻¹ ∇Ψ + g` into each body's `a` (fixed vertices: 0).
     fn mechanical(&mut self) -> Result<(), AuguryError> {
         let g = self.params.gravity;
+        let clock = Instant::now();
         for b in &mut self.bodies {
             b.force.iter_mut().for_each(|f| *f = SVector::zeros());
             b.contact_force
@@ -316,7 +406,10 @@ impl<const D: usize> ExplicitSystem<D> {
                 .add_gradient(&b.x, 1.0, &mut b.force)
                 .map_err(|e| AuguryError::Fem(format!("body `{}`: {e}", b.name)))?;
         }
+        self.timing.elastic_s = clock.elapsed().as_secs_f64();
+        let clock = Instant::now();
         self.penalty_forces();
+        self.timing.contact_s = clock.elapsed().as_secs_f64();
         for b in &mut self.bodies {
             for k in 0..b.x.len() {
                 b.a[k] = if b.fixed[k] {
@@ -363,32 +456,44 @@ impl<const D: usize> ExplicitSystem<D> {
                     pen.band,
                     &mut pen.candidates,
                 );
-                for q in 0..pen.positions.len() {
-                    let p = &pen.positions[q];
-                    // The nearest candidate facet decides.
-                    let mut best: Option<(f64, usize, SVector<f64, D>, [f64; 3])> = None;
-                    for &f in pen.candidates.of(q) {
-                        let fv = &self.bodies[jb].surface.facets()[f as usize];
-                        let (c, w) = closest_on_facet(p, fv, &self.bodies[jb].x);
-                        let d = (p - c).norm_squared();
-                        if best.as_ref().is_none_or(|b| d < b.0) {
-                            best = Some((d, f as usize, c, w));
+                // The nearest candidate facet of each vertex, in parallel; the forces are then
+                // added in vertex order (the same sums on any number of threads).
+                let (xj, surface) = (&self.bodies[jb].x, &self.bodies[jb].surface);
+                let (positions, candidates) = (&pen.positions, &pen.candidates);
+                let (stiffness, band) = (pen.stiffness, pen.band);
+                pen.hits.resize(positions.len(), None);
+                pen.hits
+                    .par_iter_mut()
+                    .enumerate()
+                    .with_min_len(512)
+                    .for_each(|(q, hit)| {
+                        *hit = None;
+                        let p = &positions[q];
+                        let mut best: Option<(f64, usize, SVector<f64, D>, [f64; 3])> = None;
+                        for &f in candidates.of(q) {
+                            let (c, w) = closest_on_facet(p, &surface.facets()[f as usize], xj);
+                            let d = (p - c).norm_squared();
+                            if best.as_ref().is_none_or(|b| d < b.0) {
+                                best = Some((d, f as usize, c, w));
+                            }
                         }
-                    }
-                    let Some((_, f, c, w)) = best else { continue };
-                    let fv = self.bodies[jb].surface.facets()[f];
-                    let n = self.bodies[jb].surface.facet_normal(f, &self.bodies[jb].x);
-                    let len = n.norm();
-                    if len == 0.0 {
-                        continue;
-                    }
-                    let n = n / len;
-                    let g = (p - c).dot(&n);
-                    if g >= 0.0 || g < -pen.band {
-                        continue;
-                    }
+                        let Some((_, f, c, w)) = best else { return };
+                        let n = surface.facet_normal(f, xj);
+                        let len = n.norm();
+                        if len == 0.0 {
+                            return;
+                        }
+                        let n = n / len;
+                        let g = (p - c).dot(&n);
+                        if g >= 0.0 || g < -band {
+                            return;
+                        }
+                        *hit = Some((f as u32, w, n * (-stiffness * g)));
+                    });
+                for (q, hit) in pen.hits.iter().enumerate() {
+                    let Some((f, w, force)) = *hit else { continue };
                     pen.active += 1;
-                    let force = n * (-pen.stiffness * g);
+                    let fv = self.bodies[jb].surface.facets()[f as usize];
                     let v = pen.points[q];
                     self.bodies[ib].force[v] -= force;
                     self.bodies[ib].contact_force[v] += force;
@@ -411,6 +516,13 @@ impl<const D: usize> ExplicitSystem<D> {
     /// full-step estimate it would remove `1.5 Δt·a` and reverse the elastic forces on the
     /// boundary — an instability we measured (velocities grow ×1.5 per step).
     fn contact(&mut self) -> Result<usize, AuguryError> {
+        let clock = Instant::now();
+        let iterations = self.augury_correction();
+        self.timing.contact_s += clock.elapsed().as_secs_f64();
+        iterations
+    }
+
+    fn augury_correction(&mut self) -> Result<usize, AuguryError> {
         let Some(aug) = self.contact.as_mut() else {
             return Ok(0);
         };
@@ -497,6 +609,7 @@ impl<const D: usize> ExplicitSystem<D> {
         mut prescribe: impl FnMut(usize, f64, &mut [SVector<f64, D>], &mut [SVector<f64, D>]),
     ) -> Result<usize, AuguryError> {
         let dt = self.params.dt;
+        let clock = Instant::now();
         if !self.started {
             self.mechanical()?;
             self.contact()?;
@@ -533,7 +646,38 @@ impl<const D: usize> ExplicitSystem<D> {
             *b += bd * (0.5 * dt);
         }
         self.time = t1;
+        self.timing.step_s = clock.elapsed().as_secs_f64();
         Ok(iterations)
+    }
+
+    /// The state a step starts from: every body's positions, velocities and accelerations, the
+    /// particles' `B_p` and their rates, and the time.
+    pub fn state(&self) -> ExplicitState<D> {
+        ExplicitState {
+            bodies: self
+                .bodies
+                .iter()
+                .map(|b| (b.x.clone(), b.v.clone(), b.a.clone()))
+                .collect(),
+            b: self.b.clone(),
+            bdot: self.bdot.clone(),
+            time: self.time,
+            started: self.started,
+        }
+    }
+
+    /// Go back to a state taken by [`Self::state`] of this system (copies, no allocation): the
+    /// next step is the one that followed it (to round-off: the same bits).
+    pub fn set_state(&mut self, s: &ExplicitState<D>) {
+        for (b, (x, v, a)) in self.bodies.iter_mut().zip(&s.bodies) {
+            b.x.copy_from_slice(x);
+            b.v.copy_from_slice(v);
+            b.a.copy_from_slice(a);
+        }
+        self.b.copy_from_slice(&s.b);
+        self.bdot.copy_from_slice(&s.bdot);
+        self.time = s.time;
+        self.started = s.started;
     }
 
     /// Total linear momentum.
@@ -577,5 +721,109 @@ impl<const D: usize> ExplicitSystem<D> {
             .iter()
             .map(|b| b.elastic.energy(&b.x).unwrap_or(f64::INFINITY))
             .sum()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use femp_contact::distance::point_triangle;
+    use proptest::prelude::*;
+
+    use super::*;
+
+    fn v(a: [f64; 3]) -> Vector3<f64> {
+        Vector3::new(a[0], a[1], a[2])
+    }
+
+    /// The baseline's plain-double closest point against femp-contact's robust one: the same
+    /// point to round-off of the triangle's size, weights that sum to 1 and rebuild it.
+    fn agrees(p: Vector3<f64>, a: Vector3<f64>, b: Vector3<f64>, c: Vector3<f64>) {
+        let w = closest_weights(&p, &a, &b, &c).expect("a triangle with area");
+        assert!(
+            w.iter().all(|&x| (-1e-12..=1.0 + 1e-12).contains(&x)),
+            "{w:?}"
+        );
+        assert!((w.iter().sum::<f64>() - 1.0).abs() <= 1e-12);
+        let q = a * w[0] + b * w[1] + c * w[2];
+        let r = point_triangle::closest_point(&p, &a, &b, &c);
+        let scale = [a, b, c, p].iter().map(|x| x.norm()).fold(1.0, f64::max);
+        assert!(
+            (q - r).norm() <= 1e-10 * scale,
+            "{p:?} vs ({a:?}, {b:?}, {c:?}): {q:?} against {r:?}"
+        );
+    }
+
+    #[test]
+    fn closest_point_in_every_region_and_on_slivers() {
+        let (a, b, c) = (v([0.0, 0.0, 0.0]), v([1.0, 0.0, 0.0]), v([0.0, 1.0, 0.0]));
+        // The face, the three vertices, the three edges, and points on the boundaries between
+        // regions.
+        for p in [
+            [0.2, 0.2, 0.5],
+            [-1.0, -1.0, 0.3],
+            [2.0, -0.5, -0.1],
+            [-0.5, 2.0, 0.0],
+            [0.5, -1.0, 1.0],
+            [1.0, 1.0, -2.0],
+            [-1.0, 0.5, 0.0],
+            [0.0, 0.0, 1.0],
+            [0.5, 0.5, 0.0],
+            [1.0, 0.0, 3.0],
+        ] {
+            agrees(v(p), a, b, c);
+        }
+        // A needle, a sliver, far from the origin.
+        let o = v([1e5, -3e5, 2e5]);
+        agrees(
+            o + v([0.3, 1e-3, 0.2]),
+            o,
+            o + v([1.0, 0.0, 0.0]),
+            o + v([0.5, 1e-4, 0.0]),
+        );
+        agrees(
+            o + v([0.5, -0.2, 0.0]),
+            o,
+            o + v([1.0, 0.0, 0.0]),
+            o + v([2.0, 1e-6, 0.0]),
+        );
+    }
+
+    #[test]
+    fn triangles_without_area_still_give_the_closest_point() {
+        // Two coincident vertices, and three collinear ones (the middle one last): the vertex
+        // and edge regions answer, or the robust fallback does — the point on the segment.
+        let x = |pts: [[f64; 3]; 3]| {
+            pts.map(|p| SVector::<f64, 3>::new(p[0], p[1], p[2]))
+                .to_vec()
+        };
+        let p = SVector::<f64, 3>::new(0.5, 1.0, 0.0);
+        for xs in [
+            x([[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [1.0, 0.0, 0.0]]),
+            x([[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.5, 0.0, 0.0]]),
+            x([[0.0, 0.0, 0.0], [0.0, 0.0, 0.0], [0.0, 0.0, 0.0]]),
+        ] {
+            let (q, w) = closest_on_facet(&p, &[0, 1, 2], &xs);
+            let expect = if xs[1] == xs[0] {
+                xs[0]
+            } else {
+                SVector::<f64, 3>::new(0.5, 0.0, 0.0)
+            };
+            assert!((q - expect).norm() < 1e-15, "{xs:?}: {q:?}");
+            assert!((w.iter().sum::<f64>() - 1.0).abs() < 1e-15, "{w:?}");
+        }
+    }
+
+    proptest! {
+        #[test]
+        fn closest_point_agrees_with_the_robust_one(
+            p in prop::array::uniform3(-2.0..2.0f64),
+            a in prop::array::uniform3(-1.0..1.0f64),
+            b in prop::array::uniform3(-1.0..1.0f64),
+            c in prop::array::uniform3(-1.0..1.0f64),
+        ) {
+            let (a, b, c) = (v(a), v(b), v(c));
+            prop_assume!((b - a).cross(&(c - a)).norm() > 1e-3);
+            agrees(v(p), a, b, c);
+        }
     }
 }

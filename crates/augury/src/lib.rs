@@ -14,6 +14,7 @@
 //!   boundary vertices are the augury particles.
 //! * [`explicit::PenaltyContact`] — the search-based baseline: node-to-surface penalty contact
 //!   with femp-contact's broad phase, for the efficiency comparison.
+//! * [`speed`] — the facing-plates scene augury contact is timed on against the baseline.
 //! * [`two_particle`] — the 1D two-particle analysis of §3.1 (eqs. 47–50) as an ODE.
 //!
 //! Momentum conservation is structural: every term of the correction is `G` applied to some
@@ -26,6 +27,7 @@ mod error;
 pub mod explicit;
 mod operator;
 pub mod scenes;
+pub mod speed;
 pub mod two_particle;
 
 pub use contact::{AuguryContact, AuguryParams, ContactModel, undesirable_part};
