@@ -194,7 +194,8 @@ impl PyScene {
 /// into `out` exactly as `femp run` does. Returns `(summary_json, metrics_header, rows)`:
 /// the summary as JSON text, the CSV header, and one row of numbers per step.
 #[pyfunction]
-#[pyo3(signature = (scene, out, max_steps = None, frames = true, overwrite = false, progress = false))]
+#[pyo3(signature = (scene, out, max_steps = None, frames = true, overwrite = false, progress = false, metrics_every = 1))]
+#[allow(clippy::too_many_arguments)]
 fn run(
     py: Python<'_>,
     scene: &PyScene,
@@ -203,7 +204,13 @@ fn run(
     frames: bool,
     overwrite: bool,
     progress: bool,
+    metrics_every: usize,
 ) -> PyResult<(String, String, Vec<Vec<f64>>)> {
+    if metrics_every == 0 {
+        return Err(pyo3::exceptions::PyValueError::new_err(
+            "femp.run: metrics_every must be at least 1 (a metrics row every N steps)",
+        ));
+    }
     let scene = scene.scene.clone();
     let dim = scene.spec.dimension;
     let result: Result<RunResult, SimError> = interruptible(py, |flag| {
@@ -213,6 +220,7 @@ fn run(
             no_frames: !frames,
             interrupt: Some(flag),
             overwrite,
+            metrics_every,
             command: vec!["python: femp.run".into()],
             ..Default::default()
         };

@@ -273,17 +273,28 @@ impl<const D: usize> AuguryState<D> {
             }
             let (a, b) = (&fem[i], &fem[j]);
             let pts: Vec<SVector<f64, D>> = a.boundary.vertices().iter().map(|&v| a.x[v]).collect();
-            femp_contact::broad_phase::candidates_within(
-                &pts,
-                &b.x,
-                &b.facets,
-                self.grid_spacing,
-                &mut c,
-            );
-            for (q, p) in pts.iter().enumerate() {
-                for &f in c.of(q) {
-                    min_d = min_d.min(point_facet_distance(p, &b.facets[f as usize], &b.x));
+            // The facets within one grid spacing of a point can be hundreds (a coarse grid over
+            // a fine mesh): search a band of a tenth of a boundary edge first and widen it (×4)
+            // only while the nearest distance found lies beyond it — a distance d ≤ band is
+            // the minimum over every facet within the grid spacing, as any nearer facet is in
+            // the band (the same bits as one search of the whole grid spacing).
+            let mut band = (0.1 * b.mean_edge()).min(self.grid_spacing);
+            if !(band > 0.0) {
+                band = self.grid_spacing;
+            }
+            loop {
+                femp_contact::broad_phase::candidates_within(&pts, &b.x, &b.facets, band, &mut c);
+                let mut d = f64::INFINITY;
+                for (q, p) in pts.iter().enumerate() {
+                    for &f in c.of(q) {
+                        d = d.min(point_facet_distance(p, &b.facets[f as usize], &b.x));
+                    }
                 }
+                if d <= band || band >= self.grid_spacing {
+                    min_d = min_d.min(d);
+                    break;
+                }
+                band = (4.0 * band).min(self.grid_spacing);
             }
         }
         (n, min_d, worst)

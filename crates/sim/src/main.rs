@@ -60,6 +60,11 @@ enum Command {
         /// Write metrics and the summary only, no frames.
         #[arg(long)]
         no_frames: bool,
+        /// Measure the state and write a metrics.csv row every N steps (and after the last)
+        /// instead of every step: measuring a large explicit step can cost as much as the
+        /// step. Every step is still checked for points passing through a body.
+        #[arg(long, value_name = "N", default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..))]
+        metrics_every: u32,
         /// No progress output.
         #[arg(long, short)]
         quiet: bool,
@@ -217,6 +222,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             overwrite,
             max_steps,
             no_frames,
+            metrics_every,
             quiet,
             pictures,
             key_frames,
@@ -249,6 +255,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                 interrupt: Some(interrupt),
                 overwrite,
                 metrics_in_file_only: true,
+                metrics_every: metrics_every as usize,
                 command: std::env::args().collect(),
                 pictures: pictures.then(|| femp::render::PictureOptions {
                     key_frames: key_frames.into(),

@@ -195,10 +195,13 @@ def run(
     frames: bool = True,
     overwrite: bool = False,
     progress: bool = False,
+    metrics_every: int = 1,
 ) -> RunResult:
     """Run ``scene`` into the directory ``out`` as ``femp run`` does (frames unless
-    ``frames=False``, metrics.csv, summary.json). A run that fails part-way raises
-    :class:`SimulationError` and keeps what it wrote; summary.json says why."""
+    ``frames=False``, metrics.csv, summary.json). ``metrics_every=N`` measures the state and
+    writes a metrics row every N steps and after the last (``femp run --metrics-every N``).
+    A run that fails part-way raises :class:`SimulationError` and keeps what it wrote;
+    summary.json says why."""
     try:
         if not isinstance(scene, Scene):
             raise TypeError(f"femp.run needs a femp.Scene, got {type(scene).__name__}")
@@ -207,7 +210,7 @@ def run(
             # mean the current one).
             raise ValueError("femp.run: out is empty: name the output directory")
         summary, header, rows = _femp.run(
-            scene._inner, os.fspath(out), max_steps, frames, overwrite, progress
+            scene._inner, os.fspath(out), max_steps, frames, overwrite, progress, metrics_every
         )
     except _femp.SceneError as e:
         raise _scene_error(e) from None

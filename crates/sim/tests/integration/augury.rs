@@ -467,3 +467,40 @@ fn bodies_passing_through_each_other_in_one_step_stop_the_run() {
             .any(|w| w.contains("passed through another body"))
     );
 }
+
+/// `metrics_every`: a row after every N-th step and after the last, each the same bits as the
+/// every-step run's row of that step (measuring does not touch the state); the summary's
+/// totals still count every step, and the file holds exactly the sampled rows.
+#[test]
+fn sampled_metrics_are_the_every_step_rows_of_those_steps() {
+    let v = fixture();
+    let every = tempfile::tempdir().unwrap();
+    let full = run(parse(&v).unwrap(), every.path(), &quiet(Some(40))).unwrap();
+    let sampled_dir = tempfile::tempdir().unwrap();
+    let opts = RunOptions {
+        metrics_every: 7,
+        ..quiet(Some(40))
+    };
+    let sampled = run(parse(&v).unwrap(), sampled_dir.path(), &opts).unwrap();
+    let steps: Vec<usize> = sampled.metrics.iter().map(|m| m.step).collect();
+    assert_eq!(steps, vec![0, 7, 14, 21, 28, 35, 40]);
+    for m in &sampled.metrics {
+        let f = &full.metrics[m.step];
+        assert_eq!(f.step, m.step);
+        // Everything but the wall time, which differs from run to run.
+        let strip = |row: String| row.rsplit_once(',').map(|(a, _)| a.to_string()).unwrap();
+        assert_eq!(
+            strip(f.csv_row::<2>()),
+            strip(m.csv_row::<2>()),
+            "step {}",
+            m.step
+        );
+    }
+    assert_eq!(sampled.summary.steps, 40);
+    assert_eq!(
+        sampled.summary.augury_iterations,
+        full.summary.augury_iterations
+    );
+    let csv = std::fs::read_to_string(sampled_dir.path().join("metrics.csv")).unwrap();
+    assert_eq!(csv.lines().count(), 1 + steps.len());
+}
