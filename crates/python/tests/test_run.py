@@ -32,6 +32,22 @@ def test_run_returns_the_metrics_and_summary_it_writes(fixtures, tmp_path):
     np.testing.assert_allclose(dp, -9.81 * m * r.metrics["dt"][0], rtol=1e-9)
 
 
+def test_metrics_every_keeps_every_nth_row_and_the_last(fixtures, tmp_path):
+    s = femp.Scene.load(os.path.join(fixtures, "augury_blocks.json"))
+    full = femp.run(s, tmp_path / "full", max_steps=12, frames=False)
+    r = femp.run(s, tmp_path / "sampled", max_steps=12, frames=False, metrics_every=5)
+    assert list(r.metrics["step"]) == [0, 5, 10, 12]
+    assert r.summary["steps"] == 12
+    assert r.summary["augury_iterations"] == full.summary["augury_iterations"]
+    rows = [int(k) for k in r.metrics["step"]]
+    for k in r.metrics:
+        if k != "wall_s":
+            np.testing.assert_array_equal(r.metrics[k], full.metrics[k][rows], err_msg=k)
+    assert list(femp.read_metrics(tmp_path / "sampled")["step"]) == [0, 5, 10, 12]
+    with pytest.raises(ValueError, match="metrics_every"):
+        femp.run(s, tmp_path / "bad", max_steps=1, frames=False, metrics_every=0)
+
+
 def test_used_output_directories_are_refused_unless_overwrite(fixtures, tmp_path):
     s = femp.Scene.load(os.path.join(fixtures, "block_on_plate.json"))
     femp.run(s, tmp_path, max_steps=2, frames=False)
