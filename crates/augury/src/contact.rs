@@ -1,9 +1,15 @@
 //! The augury contact correction (eqs. 29 and 36–46).
 
+use std::time::Instant;
+
 use nalgebra::{SMatrix, SVector};
+use rayon::prelude::*;
 
 use crate::error::{AuguryError, check_len};
 use crate::operator::{Transfer, TransferKind};
+
+/// Particles per parallel task in the per-particle loops (below it, one thread does them all).
+const MIN_LEN: usize = 4096;
 
 /// What the iterations treat as undesirable in the proposed velocity change `ΔV`.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -51,10 +57,26 @@ impl AuguryParams {
     }
 }
 
+/// Wall time of the parts of the last [`AuguryContact::correction`] (s).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct CorrectionTiming {
+    /// Placing the particles on the grid: their stencils and the active-node numbering
+    /// ([`Transfer::set_positions`]).
+    pub stencils_s: f64,
+    /// The transfers `H` (particle-to-grid, normalisation, grid-to-particle): one for `G V̄`
+    /// and one per augury iteration that changed anything.
+    pub transfers_s: f64,
+    /// Transfers applied.
+    pub transfers: usize,
+    /// The whole correction (the above and the per-particle updates).
+    pub total_s: f64,
+}
+
 /// Computes `Â = (V̂ − V̄)/τ` for the boundary particles, reusing its buffers between calls.
 pub struct AuguryContact<const D: usize> {
     transfer: Transfer<D>,
     params: AuguryParams,
+    timing: CorrectionTiming,
     hv: Vec<SVector<f64, D>>,
     hb: Vec<SMatrix<f64, D, D>>,
     wv: Vec<SVector<f64, D>>,
@@ -70,6 +92,7 @@ impl<const D: usize> AuguryContact<D> {
         Ok(Self {
             transfer,
             params,
+            timing: CorrectionTiming::default(),
             hv: Vec::new(),
             hb: Vec::new(),
             wv: Vec::new(),
@@ -89,6 +112,11 @@ impl<const D: usize> AuguryContact<D> {
         &self.params
     }
 
+    /// Where the last correction's time went.
+    pub fn timing(&self) -> CorrectionTiming {
+        self.timing
+    }
+
     /// The correction for particles at `x` with masses `mass`, unit outward normals `normal`
     /// (zero: no constraint on that particle) and predicted field `V̄ = (v̄, B̄)` (eq. 27):
     /// writes `â` into `a_out` and `Ḃ̂` into `bdot_out`. Returns the number of augury
@@ -104,6 +132,7 @@ impl<const D: usize> AuguryContact<D> {
         a_out: &mut [SVector<f64, D>],
         bdot_out: &mut [SMatrix<f64, D, D>],
     ) -> Result<usize, AuguryError> {
+        let start = Instant::now();
         let n = x.len();
         check_len("normals", n, normal.len())?;
         check_len("predicted B", n, bbar.len())?;
@@ -116,18 +145,22 @@ impl<const D: usize> AuguryContact<D> {
         for buf in [&mut self.hb, &mut self.wb, &mut self.db] {
             buf.resize(n, SMatrix::zeros());
         }
+        let clock = Instant::now();
         self.transfer.set_positions(x)?;
+        self.timing.stencils_s = clock.elapsed().as_secs_f64();
         // ΔV₀ = G V̄ = H V̄ − V̄.
+        let clock = Instant::now();
         self.transfer
             .apply(mass, vbar, bbar, &mut self.hv, &mut self.hb)?;
-        for p in 0..n {
-            self.dv[p] = self.hv[p] - vbar[p];
-            self.db[p] = if apic {
-                self.hb[p] - bbar[p]
-            } else {
-                SMatrix::zeros()
-            };
-        }
+        self.timing.transfers_s = clock.elapsed().as_secs_f64();
+        self.timing.transfers = 1;
+        (&mut self.dv, &mut self.db, &self.hv, &self.hb, vbar, bbar)
+            .into_par_iter()
+            .with_min_len(MIN_LEN)
+            .for_each(|(dv, db, hv, hb, v, b)| {
+                *dv = hv - v;
+                *db = if apic { hb - b } else { SMatrix::zeros() };
+            });
         let iterations = match self.params.model {
             ContactModel::Sticky => 0,
             _ => self.params.iterations,
@@ -135,33 +168,53 @@ impl<const D: usize> AuguryContact<D> {
         let mut active = 0;
         for _ in 0..iterations {
             // W = the undesirable part of the change proposed so far (eq. 38 / 44–46).
-            let mut any = false;
-            for p in 0..n {
-                let (w, wb) =
-                    undesirable_part(self.params.model, &self.dv[p], &self.db[p], &normal[p]);
-                any |= w != SVector::<f64, D>::zeros() || wb != SMatrix::<f64, D, D>::zeros();
-                self.wv[p] = w;
-                self.wb[p] = if apic { wb } else { SMatrix::zeros() };
-            }
+            let model = self.params.model;
+            let any = (&mut self.wv, &mut self.wb, &self.dv, &self.db, normal)
+                .into_par_iter()
+                .with_min_len(MIN_LEN)
+                .map(|(wv, wb, dv, db, n)| {
+                    let (w, b) = undesirable_part(model, dv, db, n);
+                    *wv = w;
+                    *wb = if apic { b } else { SMatrix::zeros() };
+                    w != SVector::<f64, D>::zeros() || b != SMatrix::<f64, D, D>::zeros()
+                })
+                .reduce(|| false, |a, b| a | b);
             if !any {
                 break;
             }
             active += 1;
             // ΔV += G W.
+            let clock = Instant::now();
             self.transfer
                 .apply(mass, &self.wv, &self.wb, &mut self.hv, &mut self.hb)?;
-            for p in 0..n {
-                self.dv[p] += self.hv[p] - self.wv[p];
-                if apic {
-                    self.db[p] += self.hb[p] - self.wb[p];
-                }
-            }
+            self.timing.transfers_s += clock.elapsed().as_secs_f64();
+            self.timing.transfers += 1;
+            (
+                &mut self.dv,
+                &mut self.db,
+                &self.hv,
+                &self.hb,
+                &self.wv,
+                &self.wb,
+            )
+                .into_par_iter()
+                .with_min_len(MIN_LEN)
+                .for_each(|(dv, db, hv, hb, wv, wb)| {
+                    *dv += hv - wv;
+                    if apic {
+                        *db += hb - wb;
+                    }
+                });
         }
         let inv_tau = 1.0 / self.params.tau;
-        for p in 0..n {
-            a_out[p] = self.dv[p] * inv_tau;
-            bdot_out[p] = self.db[p] * inv_tau;
-        }
+        (a_out, bdot_out, &self.dv, &self.db)
+            .into_par_iter()
+            .with_min_len(MIN_LEN)
+            .for_each(|(a, bdot, dv, db)| {
+                *a = dv * inv_tau;
+                *bdot = db * inv_tau;
+            });
+        self.timing.total_s = start.elapsed().as_secs_f64();
         Ok(active)
     }
 }

@@ -38,8 +38,10 @@ pub struct ExplicitBody<const D: usize> {
     pub contact_force: Vec<SVector<f64, D>>,
     /// The boundary (facets, normals).
     surface: Boundary<D>,
-    /// Position of each vertex in `boundary` (`usize::MAX` inside).
-    slot: Vec<usize>,
+    /// The facets of each boundary vertex (CSR by position in `boundary`, facets ascending).
+    adjacent: Vec<u32>,
+    adjacent_start: Vec<u32>,
+    facet_normals: Vec<SVector<f64, D>>,
     force: Vec<SVector<f64, D>>,
 }
 
@@ -60,6 +62,23 @@ impl<const D: usize> ExplicitBody<D> {
         for (k, &v) in b.vertices().iter().enumerate() {
             slot[v] = k;
         }
+        let mut adjacent_start = vec![0u32; b.vertices().len() + 1];
+        for fv in b.facets() {
+            for &v in &fv[..D] {
+                adjacent_start[slot[v] + 1] += 1;
+            }
+        }
+        for k in 0..b.vertices().len() {
+            adjacent_start[k + 1] += adjacent_start[k];
+        }
+        let mut fill: Vec<u32> = adjacent_start[..b.vertices().len()].to_vec();
+        let mut adjacent = vec![0u32; *adjacent_start.last().unwrap_or(&0) as usize];
+        for (f, fv) in b.facets().iter().enumerate() {
+            for &v in &fv[..D] {
+                adjacent[fill[slot[v]] as usize] = f as u32;
+                fill[slot[v]] += 1;
+            }
+        }
         Ok(Self {
             name: name.to_string(),
             elastic,
@@ -70,7 +89,9 @@ impl<const D: usize> ExplicitBody<D> {
             fixed: vec![false; n],
             boundary: b.vertices().to_vec(),
             surface: b,
-            slot,
+            adjacent,
+            adjacent_start,
+            facet_normals: Vec::new(),
             force: vec![SVector::zeros(); n],
             contact_force: vec![SVector::zeros(); n],
         })
@@ -528,39 +549,59 @@ impl<const D: usize> ExplicitSystem<D> {
         };
         let tau = aug.params().tau;
         let apic = aug.transfer().kind() == TransferKind::Apic;
-        self.px.clear();
-        self.pm.clear();
-        self.pn.clear();
-        self.pv.clear();
-        for b in &self.bodies {
+        let n: usize = self.bodies.iter().map(|b| b.boundary.len()).sum();
+        self.px.resize(n, SVector::zeros());
+        self.pm.resize(n, 0.0);
+        self.pn.resize(n, SVector::zeros());
+        self.pv.resize(n, SVector::zeros());
+        let mut start = 0;
+        for b in &mut self.bodies {
             let kinematic = self.obstacles == Obstacles::Kinematic && b.fixed.iter().all(|&f| f);
-            let start = self.pn.len();
-            self.pn.resize(start + b.boundary.len(), SVector::zeros());
-            for (f, fv) in b.surface.facets().iter().enumerate() {
-                let n = b.surface.facet_normal(f, &b.x);
-                for &v in &fv[..D] {
-                    self.pn[start + b.slot[v]] += n;
-                }
-            }
-            for &v in &b.boundary {
-                self.px.push(b.x[v]);
-                // `Obstacles::Kinematic`: the infinite-mass limit. Only for fully prescribed
-                // bodies: the fixed vertices of a partly prescribed one (the anchored bottom of
-                // a ramp) lie inside it, often within a grid cell of its free surface, and as
-                // infinitely heavy particles would impose rest on the nodes that surface uses.
-                self.pm.push(if kinematic {
-                    b.mass[v] * KINEMATIC_MASS
-                } else {
-                    b.mass[v]
+            let end = start + b.boundary.len();
+            // Area-weighted vertex normals: each facet's normal, then per boundary vertex the
+            // sum over its facets in facet order (the same sums as adding every facet's normal
+            // to its vertices in turn), normalised.
+            let (surface, x) = (&b.surface, &b.x);
+            b.facet_normals
+                .resize(surface.facets().len(), SVector::zeros());
+            b.facet_normals
+                .par_iter_mut()
+                .enumerate()
+                .with_min_len(4096)
+                .for_each(|(f, n)| *n = surface.facet_normal(f, x));
+            let (fnormals, adj, adj_start) = (&b.facet_normals, &b.adjacent, &b.adjacent_start);
+            let (mass, v, a) = (&b.mass, &b.v, &b.a);
+            (
+                &mut self.px[start..end],
+                &mut self.pm[start..end],
+                &mut self.pn[start..end],
+                &mut self.pv[start..end],
+                &b.boundary[..],
+            )
+                .into_par_iter()
+                .enumerate()
+                .with_min_len(4096)
+                .for_each(|(k, (px, pm, pn, pv, &vtx))| {
+                    let mut sum = SVector::<f64, D>::zeros();
+                    for &f in &adj[adj_start[k] as usize..adj_start[k + 1] as usize] {
+                        sum += fnormals[f as usize];
+                    }
+                    let l = sum.norm();
+                    *pn = if l > 0.0 { sum / l } else { sum };
+                    *px = x[vtx];
+                    // `Obstacles::Kinematic`: the infinite-mass limit. Only for fully
+                    // prescribed bodies: the fixed vertices of a partly prescribed one (the
+                    // anchored bottom of a ramp) lie inside it, often within a grid cell of its
+                    // free surface, and as infinitely heavy particles would impose rest on the
+                    // nodes that surface uses.
+                    *pm = if kinematic {
+                        mass[vtx] * KINEMATIC_MASS
+                    } else {
+                        mass[vtx]
+                    };
+                    *pv = v[vtx] + a[vtx] * tau;
                 });
-                self.pv.push(b.v[v] + b.a[v] * tau);
-            }
-        }
-        for n in &mut self.pn {
-            let l = n.norm();
-            if l > 0.0 {
-                *n /= l;
-            }
+            start = end;
         }
         if !apic {
             self.b.iter_mut().for_each(|b| *b = SMatrix::zeros());

@@ -30,6 +30,6 @@ pub mod scenes;
 pub mod speed;
 pub mod two_particle;
 
-pub use contact::{AuguryContact, AuguryParams, ContactModel, undesirable_part};
+pub use contact::{AuguryContact, AuguryParams, ContactModel, CorrectionTiming, undesirable_part};
 pub use error::AuguryError;
 pub use operator::{Transfer, TransferKind, angular_momentum, linear_momentum};
