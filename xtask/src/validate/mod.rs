@@ -26,6 +26,7 @@ mod saved;
 mod scenes;
 mod sine;
 mod slope;
+mod speed;
 mod stability;
 mod twist;
 mod workers;
@@ -127,6 +128,13 @@ const EXPERIMENTS: &[Experiment] = &[
         title: "Block sliding down a 30° ramp",
         run: augury::ramp_experiment,
         quick_s: 41.0,
+    },
+    Experiment {
+        name: "augury_speed",
+        section: "augury 4",
+        title: "Speed: augury contact against the search-based penalty baseline, 10³–10⁶ nodes",
+        run: speed::run,
+        quick_s: 20.0,
     },
     Experiment {
         name: "compare",
