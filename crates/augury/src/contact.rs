@@ -154,31 +154,49 @@ impl<const D: usize> AuguryContact<D> {
             .apply(mass, vbar, bbar, &mut self.hv, &mut self.hb)?;
         self.timing.transfers_s = clock.elapsed().as_secs_f64();
         self.timing.transfers = 1;
-        (&mut self.dv, &mut self.db, &self.hv, &self.hb, vbar, bbar)
-            .into_par_iter()
-            .with_min_len(MIN_LEN)
-            .for_each(|(dv, db, hv, hb, v, b)| {
-                *dv = hv - v;
-                *db = if apic { hb - b } else { SMatrix::zeros() };
-            });
         let iterations = match self.params.model {
             ContactModel::Sticky => 0,
             _ => self.params.iterations,
         };
+        let model = self.params.model;
+        let inv_tau = 1.0 / self.params.tau;
+        // W = the undesirable part of the change proposed so far (eq. 38 / 44–46), written to
+        // `(wv, wb)`; whether it is not zero.
+        let undesirable = |dv: &SVector<f64, D>,
+                           db: &SMatrix<f64, D, D>,
+                           n: &SVector<f64, D>,
+                           wv: &mut SVector<f64, D>,
+                           wb: &mut SMatrix<f64, D, D>| {
+            let (w, b) = undesirable_part(model, dv, db, n);
+            *wv = w;
+            *wb = if apic { b } else { SMatrix::zeros() };
+            w != SVector::<f64, D>::zeros() || b != SMatrix::<f64, D, D>::zeros()
+        };
+        // The per-particle passes are fused (ΔV₀ with the first W; each update with the next W,
+        // or with the output after the last iteration): every pass streams the D×D matrices of
+        // all particles, and memory bandwidth is what they cost.
+        let mut any = (
+            &mut self.dv,
+            &mut self.db,
+            &mut self.wv,
+            &mut self.wb,
+            &self.hv,
+            &self.hb,
+            vbar,
+            bbar,
+            normal,
+        )
+            .into_par_iter()
+            .with_min_len(MIN_LEN)
+            .map(|(dv, db, wv, wb, hv, hb, v, b, n)| {
+                *dv = hv - v;
+                *db = if apic { hb - b } else { SMatrix::zeros() };
+                iterations > 0 && undesirable(dv, db, n, wv, wb)
+            })
+            .reduce(|| false, |a, b| a | b);
         let mut active = 0;
-        for _ in 0..iterations {
-            // W = the undesirable part of the change proposed so far (eq. 38 / 44–46).
-            let model = self.params.model;
-            let any = (&mut self.wv, &mut self.wb, &self.dv, &self.db, normal)
-                .into_par_iter()
-                .with_min_len(MIN_LEN)
-                .map(|(wv, wb, dv, db, n)| {
-                    let (w, b) = undesirable_part(model, dv, db, n);
-                    *wv = w;
-                    *wb = if apic { b } else { SMatrix::zeros() };
-                    w != SVector::<f64, D>::zeros() || b != SMatrix::<f64, D, D>::zeros()
-                })
-                .reduce(|| false, |a, b| a | b);
+        let mut written = false;
+        for it in 0..iterations {
             if !any {
                 break;
             }
@@ -189,31 +207,45 @@ impl<const D: usize> AuguryContact<D> {
                 .apply(mass, &self.wv, &self.wb, &mut self.hv, &mut self.hb)?;
             self.timing.transfers_s += clock.elapsed().as_secs_f64();
             self.timing.transfers += 1;
-            (
+            let last = it + 1 == iterations;
+            any = (
                 &mut self.dv,
                 &mut self.db,
+                &mut self.wv,
+                &mut self.wb,
                 &self.hv,
                 &self.hb,
-                &self.wv,
-                &self.wb,
+                normal,
+                &mut *a_out,
+                &mut *bdot_out,
             )
                 .into_par_iter()
                 .with_min_len(MIN_LEN)
-                .for_each(|(dv, db, hv, hb, wv, wb)| {
-                    *dv += hv - wv;
+                .map(|(dv, db, wv, wb, hv, hb, n, a, bdot)| {
+                    *dv += hv - *wv;
                     if apic {
-                        *db += hb - wb;
+                        *db += hb - *wb;
                     }
+                    if last {
+                        *a = *dv * inv_tau;
+                        *bdot = *db * inv_tau;
+                        false
+                    } else {
+                        undesirable(dv, db, n, wv, wb)
+                    }
+                })
+                .reduce(|| false, |a, b| a | b);
+            written = last;
+        }
+        if !written {
+            (a_out, bdot_out, &self.dv, &self.db)
+                .into_par_iter()
+                .with_min_len(MIN_LEN)
+                .for_each(|(a, bdot, dv, db)| {
+                    *a = dv * inv_tau;
+                    *bdot = db * inv_tau;
                 });
         }
-        let inv_tau = 1.0 / self.params.tau;
-        (a_out, bdot_out, &self.dv, &self.db)
-            .into_par_iter()
-            .with_min_len(MIN_LEN)
-            .for_each(|(a, bdot, dv, db)| {
-                *a = dv * inv_tau;
-                *bdot = db * inv_tau;
-            });
         self.timing.total_s = start.elapsed().as_secs_f64();
         Ok(active)
     }
