@@ -274,11 +274,13 @@ impl<const D: usize> AuguryState<D> {
             let (a, b) = (&fem[i], &fem[j]);
             let pts: Vec<SVector<f64, D>> = a.boundary.vertices().iter().map(|&v| a.x[v]).collect();
             // The facets within one grid spacing of a point can be hundreds (a coarse grid over
-            // a fine mesh): search a band of a tenth of a boundary edge first and widen it (×4)
-            // only while the nearest distance found lies beyond it — a distance d ≤ band is
-            // the minimum over every facet within the grid spacing, as any nearer facet is in
-            // the band (the same bits as one search of the whole grid spacing).
-            let mut band = (0.1 * b.mean_edge()).min(self.grid_spacing);
+            // a fine mesh): search a band from the gap between the two bodies' boxes (no point
+            // is nearer than that) or a tenth of a boundary edge, and double it only while the
+            // nearest distance found lies beyond it — a distance d ≤ band is the minimum over
+            // every facet within the grid spacing, as any nearer facet is in the band (the
+            // same bits as one search of the whole grid spacing).
+            let gap = box_gap(&pts, &b.x);
+            let mut band = gap.max(0.1 * b.mean_edge()).min(self.grid_spacing);
             if !(band > 0.0) {
                 band = self.grid_spacing;
             }
@@ -294,7 +296,7 @@ impl<const D: usize> AuguryState<D> {
                     min_d = min_d.min(d);
                     break;
                 }
-                band = (4.0 * band).min(self.grid_spacing);
+                band = (2.0 * band).min(self.grid_spacing);
             }
         }
         (n, min_d, worst)
@@ -410,4 +412,20 @@ impl<const D: usize> AuguryState<D> {
             ..Default::default()
         })
     }
+}
+
+/// The distance between the bounding boxes of two point sets (0 where they overlap): no point
+/// of one is nearer the other than this.
+fn box_gap<const D: usize>(a: &[SVector<f64, D>], b: &[SVector<f64, D>]) -> f64 {
+    let bbox = |x: &[SVector<f64, D>]| {
+        x.first()
+            .map(|f| x.iter().fold((*f, *f), |(l, h), v| (l.inf(v), h.sup(v))))
+    };
+    let (Some((alo, ahi)), Some((blo, bhi))) = (bbox(a), bbox(b)) else {
+        return 0.0;
+    };
+    (0..D)
+        .map(|k| (alo[k] - bhi[k]).max(blo[k] - ahi[k]).max(0.0).powi(2))
+        .sum::<f64>()
+        .sqrt()
 }

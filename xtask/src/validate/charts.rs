@@ -102,6 +102,16 @@ pub struct Style {
     pub markers: bool,
     /// Markers only, no lines (categorical scatter plots such as stability maps).
     pub no_lines: bool,
+    /// Where the legend goes (where the data leave room).
+    pub legend: Corner,
+}
+
+/// A corner of the plot.
+#[derive(Clone, Copy, Debug, Default)]
+pub enum Corner {
+    #[default]
+    UpperRight,
+    UpperLeft,
 }
 
 fn draw<DB: DrawingBackend>(root: DrawingArea<DB, Shift>, chart: &Chart, st: Style) -> Result<()>
@@ -198,7 +208,10 @@ where
         .background_style(WHITE.mix(0.85))
         .border_style(BLACK)
         .label_font(("sans-serif", 14))
-        .position(SeriesLabelPosition::UpperRight)
+        .position(match st.legend {
+            Corner::UpperRight => SeriesLabelPosition::UpperRight,
+            Corner::UpperLeft => SeriesLabelPosition::UpperLeft,
+        })
         .draw()
         .map_err(|e| anyhow::anyhow!("{e:?}"))?;
     root.present().map_err(|e| anyhow::anyhow!("{e:?}"))?;

@@ -19,7 +19,7 @@ use femp::scene::{
     TimeSpec,
 };
 
-use super::charts::{self, Chart, Series, Style};
+use super::charts::{self, Chart, Corner, Series, Style};
 use super::scenes::{bodies, particle_box, penalty, prescribed, rectangle};
 use super::{Check, Ctx, Outcome, Pictures, Tier, fem_body};
 
@@ -140,6 +140,7 @@ fn map_chart(
             log_y: true,
             markers: true,
             no_lines: true,
+            legend: Corner::UpperRight,
         },
     )
 }
