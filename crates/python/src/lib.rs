@@ -191,8 +191,9 @@ impl PyScene {
 }
 
 /// Run a scene to its end (or `max_steps`), writing frames, `metrics.csv` and `summary.json`
-/// into `out` exactly as `femp run` does. Returns `(summary_json, metrics_header, rows)`:
-/// the summary as JSON text, the CSV header, and one row of numbers per step.
+/// into `out` exactly as `femp run` does. Returns `(summary_json, columns, rows)`: the summary
+/// as JSON text, metrics.csv's column names, and one row of values per measured step (the
+/// values themselves: metrics.csv holds them rounded to its precision).
 #[pyfunction]
 #[pyo3(signature = (scene, out, max_steps = None, frames = true, overwrite = false, progress = false, metrics_every = 1))]
 #[allow(clippy::too_many_arguments)]
@@ -205,7 +206,7 @@ fn run(
     overwrite: bool,
     progress: bool,
     metrics_every: usize,
-) -> PyResult<(String, String, Vec<Vec<f64>>)> {
+) -> PyResult<(String, Vec<String>, Vec<Vec<f64>>)> {
     if metrics_every == 0 {
         return Err(pyo3::exceptions::PyValueError::new_err(
             "femp.run: metrics_every must be at least 1 (a metrics row every N steps)",
@@ -237,21 +238,17 @@ fn run(
     Ok((summary, header, rows))
 }
 
-/// The metrics of a run as the CSV's header and rows of numbers.
-fn table<const D: usize>(forces_of: &[&str], r: &RunResult) -> (String, Vec<Vec<f64>>) {
-    let header = femp::metrics::csv_header::<D>(forces_of, r.summary.method == "augury");
+/// The metrics of a run as its column names and rows of numbers — the values themselves, not
+/// their CSV text (counts exact, reals whole).
+fn table<const D: usize>(forces_of: &[&str], r: &RunResult) -> (Vec<String>, Vec<Vec<f64>>) {
+    let augury = r.metrics.first().is_some_and(|m| m.augury);
+    let names = femp::metrics::column_names::<D>(forces_of, augury);
     let rows = r
         .metrics
         .iter()
-        .map(|m| parse_row(&m.csv_row::<D>()))
+        .map(|m| m.cells::<D>().into_iter().map(|c| c.value()).collect())
         .collect();
-    (header, rows)
-}
-
-fn parse_row(row: &str) -> Vec<f64> {
-    row.split(',')
-        .map(|v| v.parse::<f64>().unwrap_or(f64::NAN))
-        .collect()
+    (names, rows)
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -374,10 +371,13 @@ impl PyWorld {
         }
         (m.contact_forces, m.friction_forces) =
             w.body_forces(last.map_or(&[][..], |r| &r.pair_forces[..]));
-        let header = femp::metrics::csv_header::<D>(&names, w.augury().is_some());
         let d = PyDict::new(py);
-        for (k, v) in header.split(',').zip(parse_row(&m.csv_row::<D>())) {
-            d.set_item(k, v)?;
+        let columns = femp::metrics::column_names::<D>(&names, m.augury);
+        for (k, c) in columns.iter().zip(m.cells::<D>()) {
+            match c {
+                femp::metrics::Cell::Count(n) => d.set_item(k, n)?,
+                femp::metrics::Cell::Real(v, _) => d.set_item(k, v)?,
+            }
         }
         Ok(d)
     }

@@ -24,8 +24,14 @@ def test_run_returns_the_metrics_and_summary_it_writes(fixtures, tmp_path):
     csv = femp.read_metrics(out)
     assert list(csv) == list(r.metrics)
     assert len(r.metrics["step"]) == 21  # the initial state, then one row per step
+    # The values themselves (Δt exactly as the scene gives it); metrics.csv holds them rounded
+    # to at least 7 significant digits, counts exactly.
+    assert np.all(r.metrics["dt"] == s.to_dict()["time"]["dt"])
     for k in r.metrics:
-        np.testing.assert_allclose(r.metrics[k], csv[k], rtol=1e-12, atol=0, err_msg=k)
+        if k in ("step", "penetrations", "newton_iterations", "contact_terms", "substeps"):
+            np.testing.assert_array_equal(r.metrics[k], csv[k], err_msg=k)
+        else:
+            np.testing.assert_allclose(r.metrics[k], csv[k], rtol=5e-7, atol=0, err_msg=k)
     # Gravity: the momentum changes by m g Δt per step while the block falls freely.
     m = femp.World(s).particles()["mass"].sum()
     dp = np.diff(r.metrics["momentum_y"][:3])
@@ -100,3 +106,22 @@ def test_ctrl_c_stops_a_run_and_keeps_its_outputs(tmp_path, fixtures):
     width = len(lines[0].split(","))
     assert all(len(line.split(",")) == width for line in lines[1:])
     assert summary["steps"] == len(lines) - 2
+
+
+def test_metrics_are_the_values_not_their_csv_text(fixtures, tmp_path):
+    dt = 1.0 / 300.0  # not a 7-digit decimal
+    s = femp.Scene.load(os.path.join(fixtures, "block_on_plate.json"))
+    s = s.with_changes({"time.dt": dt})
+    r = femp.run(s, tmp_path, max_steps=2, frames=False)
+    assert np.all(r.metrics["dt"] == dt)
+    assert np.all(r.metrics["t"] == dt * r.metrics["step"])
+    csv = femp.read_metrics(tmp_path)
+    assert np.all(csv["dt"] != dt)  # metrics.csv rounds it
+    np.testing.assert_allclose(csv["dt"], dt, rtol=5e-7)
+    # A World's metrics: counts as ints, reals as floats.
+    w = femp.World(s)
+    w.step(1)
+    m = w.metrics()
+    assert isinstance(m["step"], int) and m["step"] == 1
+    assert isinstance(m["newton_iterations"], int) and m["newton_iterations"] > 0
+    assert isinstance(m["dt"], float) and m["dt"] == dt

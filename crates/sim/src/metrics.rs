@@ -85,31 +85,177 @@ pub struct Metrics {
     pub friction_forces: Vec<[f64; 3]>,
 }
 
-/// CSV header matching [`Metrics::csv_row`] for a BFEMP scene or (`augury`) an augury one,
-/// with force columns for the bodies `forces_of` (`force_NAME_x`, … the contact force, then
-/// `friction_NAME_x`, … its friction part).
-pub fn csv_header<const D: usize>(forces_of: &[&str], augury: bool) -> String {
-    let mut h = String::from(
-        "step,t,dt,kinetic_energy,elastic_energy,barrier_energy,gravity_energy,total_energy,affine_kinetic_energy,momentum_x,momentum_y",
-    );
-    if D == 3 {
-        h.push_str(",momentum_z,angular_momentum_x,angular_momentum_y,angular_momentum_z");
-    } else {
-        h.push_str(",angular_momentum");
+/// One value of a metrics row: a count, or a real number written in scientific notation with
+/// this many digits after the point in `metrics.csv` (callers of [`Metrics::cells`] get it
+/// whole).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Cell {
+    /// A count (steps, iterations, points).
+    Count(usize),
+    /// A real number and its CSV precision.
+    Real(f64, usize),
+}
+
+impl Cell {
+    /// The value as a number (a count exactly).
+    pub fn value(self) -> f64 {
+        match self {
+            Cell::Count(n) => n as f64,
+            Cell::Real(v, _) => v,
+        }
     }
-    h.push_str(if augury {
-        ",min_distance,penetrations,penetration_depth,swept_entered,swept_depth,augury_iterations,contact_terms,wall_s"
-    } else {
-        ",min_distance,penetrations,penetration_depth,swept_entered,swept_depth,newton_iterations,friction_iterations,contact_terms,backtracks,ccd_limited,exact_hessians,reused_hessians,pcg_iterations,substeps,wall_s"
-    });
+
+    fn write(self, out: &mut String) {
+        use std::fmt::Write;
+        // Writing to a String cannot fail.
+        let _ = match self {
+            Cell::Count(n) => write!(out, "{n}"),
+            Cell::Real(v, digits) => write!(out, "{v:.digits$e}"),
+        };
+    }
+}
+
+/// Which rows a column belongs to.
+#[derive(Clone, Copy, PartialEq, Eq)]
+enum Rows {
+    All,
+    Bfemp,
+    Augury,
+}
+
+/// One column of `metrics.csv`: its name, the dimension it exists in (0: both), the rows that
+/// have it, and its value.
+struct Column {
+    name: &'static str,
+    dim: usize,
+    rows: Rows,
+    cell: fn(&Metrics) -> Cell,
+}
+
+const fn col(name: &'static str, cell: fn(&Metrics) -> Cell) -> Column {
+    Column {
+        name,
+        dim: 0,
+        rows: Rows::All,
+        cell,
+    }
+}
+
+const fn only(rows: Rows, name: &'static str, cell: fn(&Metrics) -> Cell) -> Column {
+    Column {
+        name,
+        dim: 0,
+        rows,
+        cell,
+    }
+}
+
+const fn in_dim(dim: usize, name: &'static str, cell: fn(&Metrics) -> Cell) -> Column {
+    Column {
+        name,
+        dim,
+        rows: Rows::All,
+        cell,
+    }
+}
+
+/// The columns of `metrics.csv` in order, before the per-body force columns: the one place
+/// that says what a row holds (the CSV header, its rows and what Python receives all come from
+/// it).
+const COLUMNS: &[Column] = &[
+    col("step", |m| Cell::Count(m.step)),
+    col("t", |m| Cell::Real(m.t, 9)),
+    col("dt", |m| Cell::Real(m.dt, 6)),
+    col("kinetic_energy", |m| Cell::Real(m.kinetic_energy, 12)),
+    col("elastic_energy", |m| Cell::Real(m.elastic_energy, 12)),
+    col("barrier_energy", |m| Cell::Real(m.barrier_energy, 12)),
+    col("gravity_energy", |m| Cell::Real(m.gravity_energy, 12)),
+    col("total_energy", |m| {
+        Cell::Real(
+            m.kinetic_energy + m.elastic_energy + m.barrier_energy + m.gravity_energy,
+            12,
+        )
+    }),
+    col("affine_kinetic_energy", |m| {
+        Cell::Real(m.affine_kinetic_energy, 12)
+    }),
+    col("momentum_x", |m| Cell::Real(m.momentum[0], 12)),
+    col("momentum_y", |m| Cell::Real(m.momentum[1], 12)),
+    in_dim(3, "momentum_z", |m| Cell::Real(m.momentum[2], 12)),
+    in_dim(3, "angular_momentum_x", |m| {
+        Cell::Real(m.angular_momentum[0], 12)
+    }),
+    in_dim(3, "angular_momentum_y", |m| {
+        Cell::Real(m.angular_momentum[1], 12)
+    }),
+    in_dim(3, "angular_momentum_z", |m| {
+        Cell::Real(m.angular_momentum[2], 12)
+    }),
+    in_dim(2, "angular_momentum", |m| {
+        Cell::Real(m.angular_momentum[2], 12)
+    }),
+    col("min_distance", |m| Cell::Real(m.min_distance, 9)),
+    col("penetrations", |m| Cell::Count(m.penetrations)),
+    col("penetration_depth", |m| Cell::Real(m.penetration_depth, 6)),
+    col("swept_entered", |m| Cell::Count(m.swept_entered)),
+    col("swept_depth", |m| Cell::Real(m.swept_depth, 6)),
+    only(Rows::Augury, "augury_iterations", |m| {
+        Cell::Count(m.augury_iterations)
+    }),
+    only(Rows::Bfemp, "newton_iterations", |m| {
+        Cell::Count(m.newton_iterations)
+    }),
+    only(Rows::Bfemp, "friction_iterations", |m| {
+        Cell::Count(m.friction_iterations)
+    }),
+    col("contact_terms", |m| Cell::Count(m.contact_terms)),
+    only(Rows::Bfemp, "backtracks", |m| Cell::Count(m.backtracks)),
+    only(Rows::Bfemp, "ccd_limited", |m| Cell::Count(m.ccd_limited)),
+    only(Rows::Bfemp, "exact_hessians", |m| {
+        Cell::Count(m.exact_hessians)
+    }),
+    only(Rows::Bfemp, "reused_hessians", |m| {
+        Cell::Count(m.reused_hessians)
+    }),
+    only(Rows::Bfemp, "pcg_iterations", |m| {
+        Cell::Count(m.pcg_iterations)
+    }),
+    only(Rows::Bfemp, "substeps", |m| Cell::Count(m.substeps)),
+    col("wall_s", |m| Cell::Real(m.wall_s, 6)),
+];
+
+/// The columns of a BFEMP row or (`augury`) an augury one, in dimension `D`.
+fn columns<const D: usize>(augury: bool) -> impl Iterator<Item = &'static Column> {
+    COLUMNS.iter().filter(move |c| {
+        (c.dim == 0 || c.dim == D)
+            && match c.rows {
+                Rows::All => true,
+                Rows::Bfemp => !augury,
+                Rows::Augury => augury,
+            }
+    })
+}
+
+const AXES: [&str; 3] = ["x", "y", "z"];
+
+/// The names of the columns of [`Metrics::cells`] for a BFEMP scene or (`augury`) an augury
+/// one, with force columns for the bodies `forces_of` (`force_NAME_x`, … the contact force,
+/// then `friction_NAME_x`, … its friction part).
+pub fn column_names<const D: usize>(forces_of: &[&str], augury: bool) -> Vec<String> {
+    let mut names: Vec<String> = columns::<D>(augury).map(|c| c.name.to_string()).collect();
     for kind in ["force", "friction"] {
         for name in forces_of {
-            for axis in ["x", "y", "z"].iter().take(D) {
-                h.push_str(&format!(",{kind}_{name}_{axis}"));
+            for axis in &AXES[..D] {
+                names.push(format!("{kind}_{name}_{axis}"));
             }
         }
     }
-    h
+    names
+}
+
+/// CSV header matching [`Metrics::csv_row`]: [`column_names`] joined by commas.
+pub fn csv_header<const D: usize>(forces_of: &[&str], augury: bool) -> String {
+    column_names::<D>(forces_of, augury).join(",")
 }
 
 impl Metrics {
@@ -135,69 +281,24 @@ impl Metrics {
         self.substeps = report.substeps;
     }
 
-    /// One CSV row.
-    pub fn csv_row<const D: usize>(&self) -> String {
-        let mut r = format!(
-            "{},{:.9e},{:.6e},{:.12e},{:.12e},{:.12e},{:.12e},{:.12e},{:.12e},{:.12e},{:.12e}",
-            self.step,
-            self.t,
-            self.dt,
-            self.kinetic_energy,
-            self.elastic_energy,
-            self.barrier_energy,
-            self.gravity_energy,
-            self.kinetic_energy + self.elastic_energy + self.barrier_energy + self.gravity_energy,
-            self.affine_kinetic_energy,
-            self.momentum[0],
-            self.momentum[1]
-        );
-        if D == 3 {
-            r.push_str(&format!(
-                ",{:.12e},{:.12e},{:.12e},{:.12e}",
-                self.momentum[2],
-                self.angular_momentum[0],
-                self.angular_momentum[1],
-                self.angular_momentum[2]
-            ));
-        } else {
-            r.push_str(&format!(",{:.12e}", self.angular_momentum[2]));
-        }
-        if self.augury {
-            r.push_str(&format!(
-                ",{:.9e},{},{:.6e},{},{:.6e},{},{},{:.6e}",
-                self.min_distance,
-                self.penetrations,
-                self.penetration_depth,
-                self.swept_entered,
-                self.swept_depth,
-                self.augury_iterations,
-                self.contact_terms,
-                self.wall_s
-            ));
-        } else {
-            r.push_str(&format!(
-                ",{:.9e},{},{:.6e},{},{:.6e},{},{},{},{},{},{},{},{},{},{:.6e}",
-                self.min_distance,
-                self.penetrations,
-                self.penetration_depth,
-                self.swept_entered,
-                self.swept_depth,
-                self.newton_iterations,
-                self.friction_iterations,
-                self.contact_terms,
-                self.backtracks,
-                self.ccd_limited,
-                self.exact_hessians,
-                self.reused_hessians,
-                self.pcg_iterations,
-                self.substeps,
-                self.wall_s
-            ));
-        }
+    /// The row's values, in the order of [`column_names`] (with one force column triple per
+    /// body of `contact_forces`, then of `friction_forces`).
+    pub fn cells<const D: usize>(&self) -> Vec<Cell> {
+        let mut cells: Vec<Cell> = columns::<D>(self.augury).map(|c| (c.cell)(self)).collect();
         for f in self.contact_forces.iter().chain(&self.friction_forces) {
-            for v in &f[..D] {
-                r.push_str(&format!(",{v:.12e}"));
+            cells.extend(f[..D].iter().map(|&v| Cell::Real(v, 12)));
+        }
+        cells
+    }
+
+    /// One CSV row ([`Self::cells`] at their CSV precision).
+    pub fn csv_row<const D: usize>(&self) -> String {
+        let mut r = String::new();
+        for (k, c) in self.cells::<D>().into_iter().enumerate() {
+            if k > 0 {
+                r.push(',');
             }
+            c.write(&mut r);
         }
         r
     }
@@ -433,5 +534,127 @@ impl<const D: usize> World<D> {
             });
         }
         out
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A row whose every field differs, with contact forces on two bodies.
+    fn row(augury: bool) -> Metrics {
+        let mut k = 0.0;
+        let mut next = || {
+            k += 1.0;
+            std::f64::consts::PI * k * 10f64.powi(k as i32 % 7 - 3)
+        };
+        Metrics {
+            step: 17,
+            t: next(),
+            dt: next(),
+            kinetic_energy: next(),
+            affine_kinetic_energy: next(),
+            elastic_energy: next(),
+            barrier_energy: next(),
+            gravity_energy: -next(),
+            momentum: [next(), -next(), next()],
+            angular_momentum: [next(), next(), -next()],
+            min_distance: next(),
+            penetrations: 3,
+            penetration_depth: next(),
+            deepest: None,
+            swept_entered: 2,
+            swept_depth: next(),
+            substeps: 4,
+            newton_iterations: 12,
+            friction_iterations: 5,
+            augury_iterations: 7,
+            augury,
+            contact_terms: 99,
+            backtracks: 1,
+            ccd_limited: 6,
+            exact_hessians: 8,
+            reused_hessians: 9,
+            pcg_iterations: 123,
+            wall_s: next(),
+            contact_forces: if augury {
+                vec![]
+            } else {
+                vec![[next(), next(), next()]; 2]
+            },
+            friction_forces: if augury {
+                vec![]
+            } else {
+                vec![[next(), -next(), next()]; 2]
+            },
+        }
+    }
+
+    fn check<const D: usize>(augury: bool) {
+        let m = row(augury);
+        let bodies: &[&str] = if augury { &[] } else { &["a", "b"] };
+        let names = column_names::<D>(bodies, augury);
+        let cells = m.cells::<D>();
+        assert_eq!(names.len(), cells.len(), "{D}D augury={augury}");
+        let unique: std::collections::HashSet<_> = names.iter().collect();
+        assert_eq!(unique.len(), names.len(), "column names repeat");
+        assert_eq!(csv_header::<D>(bodies, augury), names.join(","));
+        // The CSV row is the cells at their precision, column for column.
+        let csv = m.csv_row::<D>();
+        let text: Vec<&str> = csv.split(',').collect();
+        assert_eq!(text.len(), cells.len());
+        for ((name, c), t) in names.iter().zip(&cells).zip(&text) {
+            match *c {
+                Cell::Count(n) => assert_eq!(*t, n.to_string(), "{name}"),
+                Cell::Real(v, digits) => {
+                    let back: f64 = t.parse().unwrap();
+                    assert!(
+                        (back - v).abs() <= 0.51 * 10f64.powi(-(digits as i32)) * v.abs(),
+                        "{name}: {t} for {v}"
+                    );
+                }
+            }
+        }
+        // Each column holds its own field.
+        let at = |n: &str| cells[names.iter().position(|x| x == n).unwrap()].value();
+        assert_eq!(at("step"), 17.0);
+        assert_eq!(at("dt"), m.dt);
+        assert_eq!(at("contact_terms"), 99.0);
+        assert_eq!(
+            at("total_energy"),
+            m.kinetic_energy + m.elastic_energy + m.barrier_energy + m.gravity_energy
+        );
+        if D == 2 {
+            assert_eq!(at("angular_momentum"), m.angular_momentum[2]);
+        } else {
+            assert_eq!(at("angular_momentum_y"), m.angular_momentum[1]);
+            assert_eq!(at("momentum_z"), m.momentum[2]);
+        }
+        if augury {
+            assert_eq!(at("augury_iterations"), 7.0);
+            assert!(!names.iter().any(|n| n == "newton_iterations"));
+        } else {
+            assert_eq!(at("newton_iterations"), 12.0);
+            assert_eq!(at("substeps"), 4.0);
+            assert_eq!(
+                at(&format!("friction_b_{}", AXES[D - 1])),
+                m.friction_forces[1][D - 1]
+            );
+            assert!(!names.iter().any(|n| n == "augury_iterations"));
+        }
+        let last = if augury {
+            "wall_s".to_string()
+        } else {
+            format!("friction_b_{}", AXES[D - 1])
+        };
+        assert_eq!(names.last(), Some(&last));
+    }
+
+    #[test]
+    fn one_column_table_gives_the_header_the_row_and_the_values() {
+        check::<2>(false);
+        check::<3>(false);
+        check::<2>(true);
+        check::<3>(true);
     }
 }

@@ -209,12 +209,11 @@ def run(
             # As `femp run --out ''`: an empty name is not a directory to write into (it would
             # mean the current one).
             raise ValueError("femp.run: out is empty: name the output directory")
-        summary, header, rows = _femp.run(
+        summary, columns, rows = _femp.run(
             scene._inner, os.fspath(out), max_steps, frames, overwrite, progress, metrics_every
         )
     except _femp.SceneError as e:
         raise _scene_error(e) from None
-    columns = header.split(",")
     table = np.array(rows, dtype=float).reshape(len(rows), len(columns))
     metrics = {c: table[:, i] for i, c in enumerate(columns)}
     return RunResult(os.fspath(out), json.loads(summary), metrics)
