@@ -134,7 +134,7 @@ const EXPERIMENTS: &[Experiment] = &[
         section: "augury 4",
         title: "Speed: augury contact against the search-based penalty baseline, 10³–10⁶ nodes",
         run: speed::run,
-        quick_s: 20.0,
+        quick_s: 5.0,
     },
     Experiment {
         name: "compare",
