@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # The Python package's tests: build the extension (maturin, release) into a private virtual
-# environment under target/ and run pytest on crates/python/tests. Needs Python ≥ 3.9 with the
+# environment under target/, check the package's types (mypy, stubtest) and run pytest on
+# crates/python/tests. Needs Python ≥ 3.9 with the
 # venv module (PYTHON=… to choose the interpreter) and PyPI for the first run's packages.
 set -euo pipefail
 cd "$(dirname "$0")/../.."
@@ -25,4 +26,9 @@ fi
     -r crates/python/requirements-test.txt
 VIRTUAL_ENV="$PWD/$venv" "$venv/bin/maturin" develop --release --quiet \
     --manifest-path crates/python/Cargo.toml
+# The package's types: mypy on its sources, and stubtest holding the native module's stub
+# (femp/_femp.pyi) to what the extension really exports, names and signatures.
+(cd crates/python/python &&
+    "../../../$venv/bin/python" -m mypy --config-file ../pyproject.toml -p femp &&
+    "../../../$venv/bin/python" -m mypy.stubtest femp._femp --mypy-config-file ../pyproject.toml)
 "$venv/bin/python" -m pytest -q crates/python/tests

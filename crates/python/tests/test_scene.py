@@ -50,3 +50,32 @@ def test_overlapping_bodies_are_refused_when_the_world_is_built(fixtures):
     box["max"][1] -= 0.1
     with pytest.raises(femp.SceneError, match="overlapping|inside"):
         femp.World(femp.Scene.from_dict(d, base_dir=s.base_dir))
+
+
+def test_with_changes_names_the_path_it_cannot_follow(fixtures):
+    s = femp.Scene.load(os.path.join(fixtures, "block_on_plate.json"))
+    for path, message in [
+        ("bodies[-1].material.E", "negative list index -1"),
+        ("bodies[2].material.E", "`bodies` has 2 entries, no \\[2\\]"),
+        ("bodies[x].material.E", "not a whole number"),
+        ("time.dt.value", "`time.dt` is not an object"),
+        ("time[0]", "`time` is not a list"),
+        ("contact..friction", "empty field name"),
+        ("bodies[1.material.E", "without"),
+    ]:
+        with pytest.raises(femp.SceneError, match=message) as e:
+            s.with_changes({path: 1.0})
+        assert f"`{path}`" in str(e.value) and isinstance(e.value, ValueError)
+    # A field the scene does not know: refused by the scene check, naming it.
+    with pytest.raises(femp.SceneError, match="frictionn"):
+        s.with_changes({"contact.frictionn": 0.3})
+    # A new field the scene knows is fine (the fixture has no contact.friction).
+    assert s.with_changes({"contact.friction": 0.2}).to_dict()["contact"]["friction"] == 0.2
+
+
+def test_world_methods_are_visible(fixtures):
+    w = femp.World(femp.Scene.load(os.path.join(fixtures, "block_on_plate.json")))
+    names = set(dir(w))
+    assert {"step", "time", "steps", "dt", "dimension", "fem_bodies", "mpm_bodies",
+            "particles", "fem", "metrics", "warnings"} <= names
+    assert femp.World.step.__doc__ and "solver report" in femp.World.step.__doc__

@@ -26,7 +26,7 @@ from __future__ import annotations
 import json
 import os
 from dataclasses import dataclass, field
-from typing import Any, Dict, Optional, Union
+from typing import Any, Dict, List, Optional, Union
 
 import numpy as np
 
@@ -131,33 +131,60 @@ class Scene:
 
 
 def _set_path(d: Any, path: str, value: Any) -> None:
-    keys = []
+    """Set ``value`` at a dotted path such as ``bodies[1].material.E``. A field may be new (the
+    scene check then refuses a name it does not know); a list index must exist and not be
+    negative, and every step but the last must lead into an object or list."""
+
+    def bad(why: str) -> SceneError:
+        return SceneError(f"with_changes: `{path}`: {why}")
+
+    keys: list = []
     for part in path.split("."):
+        if not part:
+            raise bad("empty field name (two dots, or a dot at an end)")
         while "[" in part:
             head, rest = part.split("[", 1)
             if head:
                 keys.append(head)
+            if "]" not in rest:
+                raise bad("`[` without `]`")
             index, part = rest.split("]", 1)
-            keys.append(int(index))
+            try:
+                k = int(index)
+            except ValueError:
+                raise bad(f"list index `{index}` is not a whole number") from None
+            if k < 0:
+                raise bad(f"negative list index {k}: count from 0")
+            keys.append(k)
         if part:
             keys.append(part)
     node = d
-    for k in keys[:-1]:
-        if isinstance(k, str) and isinstance(node, dict) and k not in node:
-            node[k] = {}
-        node = node[k]
-    node[keys[-1]] = value
+    walked = ""
+    for depth, k in enumerate(keys):
+        last = depth == len(keys) - 1
+        if isinstance(k, int):
+            if not isinstance(node, list):
+                raise bad(f"`{walked}` is not a list, cannot take [{k}]")
+            if k >= len(node):
+                raise bad(f"`{walked}` has {len(node)} entries, no [{k}]")
+            walked += f"[{k}]"
+        else:
+            if not isinstance(node, dict):
+                raise bad(f"`{walked}` is not an object, cannot take `.{k}`")
+            walked += ("." if walked else "") + k
+            if not last and k not in node:
+                # A new section (e.g. `contact` in a scene without one); the scene check
+                # refuses names it does not know.
+                node[k] = [] if isinstance(keys[depth + 1], int) else {}
+        if last:
+            node[k] = value
+        else:
+            node = node[k]
 
 
 class World:
-    """A simulation state stepped from Python (see ``help(femp._femp.World)``):
-
-    ``step(n=1)`` → the last step's solver report; ``time``, ``steps``, ``dt``, ``dimension``;
-    ``particles()`` → ``x``, ``v``, ``mass``, ``volume``, ``rest_volume``, ``F``, ``B``,
-    ``stress``, ``contact_force``, ``body`` (index into ``body_names``);
-    ``fem(name)`` → ``x``, ``v``, ``rest``, ``initial``, ``mass``, ``elements``, ``facets``,
-    ``stress``, ``contact_force``; ``fem_bodies``, ``mpm_bodies``; ``metrics()`` (metrics.csv's
-    columns now); ``warnings()``. Arrays are copies."""
+    """A simulation state stepped from Python: build it from a :class:`Scene`, :meth:`step` it,
+    read its state as numpy arrays (copies) and its metrics."""
 
     __slots__ = ("_inner",)
 
@@ -169,8 +196,63 @@ class World:
         except _femp.SceneError as e:
             raise _scene_error(e) from None
 
-    def __getattr__(self, name: str) -> Any:
-        return getattr(self._inner, name)
+    def step(self, n: int = 1) -> Dict[str, Any]:
+        """Advance ``n`` steps; the last step's solver report (``newton_iterations``,
+        ``friction_iterations``, ``contact_terms``, ``min_distance``, …). A step that fails
+        raises :class:`SimulationError`; Ctrl-C raises ``KeyboardInterrupt``."""
+        return self._inner.step(n)
+
+    @property
+    def time(self) -> float:
+        """Simulated time (s)."""
+        return self._inner.time
+
+    @property
+    def steps(self) -> int:
+        """Steps taken."""
+        return self._inner.steps
+
+    @property
+    def dt(self) -> float:
+        """The time step (s)."""
+        return self._inner.dt
+
+    @property
+    def dimension(self) -> int:
+        """2 or 3."""
+        return self._inner.dimension
+
+    @property
+    def fem_bodies(self) -> List[str]:
+        """Names of the FEM bodies, in scene order."""
+        return self._inner.fem_bodies
+
+    @property
+    def mpm_bodies(self) -> List[str]:
+        """Names of the MPM bodies, in scene order."""
+        return self._inner.mpm_bodies
+
+    def particles(self) -> Dict[str, Any]:
+        """The MPM particles: ``x``, ``v`` (n × D), ``mass``, ``volume``, ``rest_volume`` (n),
+        ``F``, ``B``, ``stress`` (n × D × D), ``contact_force`` (n × D), ``body`` (index into
+        ``body_names``)."""
+        return self._inner.particles()
+
+    def fem(self, name: str) -> Dict[str, Any]:
+        """FEM body ``name``: ``x``, ``v``, ``rest``, ``initial`` (vertices × D), ``mass``,
+        ``elements``, ``facets`` (vertex indices), ``stress`` (per element),
+        ``contact_force`` (per vertex). ``ValueError`` for an unknown name."""
+        return self._inner.fem(name)
+
+    def metrics(self) -> Dict[str, Union[int, float]]:
+        """metrics.csv's columns now (energies, momenta, penetrations, the last step's solver
+        columns and per-body contact forces); counts as ``int``, the rest as ``float``
+        (``wall_s`` is 0 here)."""
+        return self._inner.metrics()
+
+    def warnings(self) -> List[str]:
+        """What the scene asks for and femp does not fully model."""
+        return self._inner.warnings()
 
     def __repr__(self) -> str:
         return repr(self._inner)
@@ -225,4 +307,4 @@ def read_metrics(path: Union[str, os.PathLike]) -> Dict[str, np.ndarray]:
     if os.path.isdir(path):
         path = os.path.join(path, "metrics.csv")
     table = np.genfromtxt(path, delimiter=",", names=True, ndmin=1)
-    return {name: np.asarray(table[name], dtype=float) for name in table.dtype.names}
+    return {name: np.asarray(table[name], dtype=float) for name in table.dtype.names or ()}

@@ -8,9 +8,10 @@ the same forces here (docs/contact.md).
 
 from __future__ import annotations
 
-from typing import Optional, Tuple
+from typing import Any, Dict, Optional, Tuple
 
 import numpy as np
+import numpy.typing as npt
 
 from . import _femp
 
@@ -20,8 +21,9 @@ def barrier(d: float, dhat: float, kappa: float) -> Tuple[float, float, float]:
     return _femp.barrier(float(d), float(dhat), float(kappa))
 
 
-def point_edge(p, e0, e1, dhat: float, kappa: float, weight: float = 1.0,
-               hessian: str = "projected") -> Optional[dict]:
+def point_edge(p: npt.ArrayLike, e0: npt.ArrayLike, e1: npt.ArrayLike, dhat: float,
+               kappa: float, weight: float = 1.0,
+               hessian: str = "projected") -> Optional[Dict[str, Any]]:
     """Potential ``weight * b(d)`` of point ``p`` against edge ``e0 e1`` (2D or 3D).
 
     Returns ``None`` when ``d >= dhat``, else a dict: ``distance``, ``value``, ``gradient``
@@ -31,19 +33,22 @@ def point_edge(p, e0, e1, dhat: float, kappa: float, weight: float = 1.0,
                                       float(weight), hessian)
 
 
-def point_triangle(p, t0, t1, t2, dhat: float, kappa: float, weight: float = 1.0,
-                   hessian: str = "projected") -> Optional[dict]:
+def point_triangle(p: npt.ArrayLike, t0: npt.ArrayLike, t1: npt.ArrayLike,
+                   t2: npt.ArrayLike, dhat: float, kappa: float, weight: float = 1.0,
+                   hessian: str = "projected") -> Optional[Dict[str, Any]]:
     """As :func:`point_edge` for a triangle (3D): gradient 4 x 3, Hessian 12 x 12."""
     return _femp.point_triangle_potential(_v(p), _v(t0), _v(t1), _v(t2), float(dhat),
                                           float(kappa), float(weight), hessian)
 
 
-def sq_distance(p, a, b, c=None) -> float:
+def sq_distance(p: npt.ArrayLike, a: npt.ArrayLike, b: npt.ArrayLike,
+                c: Optional[npt.ArrayLike] = None) -> float:
     """Squared distance from ``p`` to the edge ``a b``, or to the triangle ``a b c``."""
     return _femp.sq_distance(_v(p), _v(a), _v(b), None if c is None else _v(c))
 
 
-def ccd(start, end, max_iterations: int = 800) -> Optional[float]:
+def ccd(start: npt.ArrayLike, end: npt.ArrayLike,
+        max_iterations: int = 800) -> Optional[float]:
     """Conservative time of impact in [0, 1] of a point against an edge or triangle, all moving
     linearly from ``start`` to ``end`` (rows: point, then the feature's vertices; shapes (3, 2),
     (3, 3) or (4, 3)); ``None`` if they never come within the CCD's separation."""
@@ -52,5 +57,5 @@ def ccd(start, end, max_iterations: int = 800) -> Optional[float]:
     return toi
 
 
-def _v(x) -> np.ndarray:
+def _v(x: npt.ArrayLike) -> np.ndarray:
     return np.ascontiguousarray(x, dtype=float).reshape(-1)

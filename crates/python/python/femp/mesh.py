@@ -19,14 +19,14 @@ import argparse
 import contextlib
 import os
 import sys
-from typing import Optional, Sequence, Union
+from typing import Any, Iterator, List, Optional, Sequence, Tuple, Union
 
 import numpy as np
 
 PathLike = Union[str, "os.PathLike[str]"]
 
 
-def _gmsh():
+def _gmsh() -> Any:
     try:
         import gmsh
     except ImportError as e:  # pragma: no cover - depends on the environment
@@ -34,7 +34,7 @@ def _gmsh():
     return gmsh
 
 
-def read_surface(path: PathLike):
+def read_surface(path: PathLike) -> Tuple[np.ndarray, np.ndarray]:
     """Points (n×3) and triangles (m×3) of a .stl or .obj surface (meshio; quads are split)."""
     try:
         import meshio
@@ -48,7 +48,7 @@ def read_surface(path: PathLike):
         # meshio's binary-STL probe overflows harmlessly on ASCII files.
         warnings.simplefilter("ignore", RuntimeWarning)
         m = _meshio_read(meshio, path)
-    tris = []
+    tris: List[np.ndarray] = []
     for block in m.cells:
         if block.type == "triangle":
             tris.append(block.data)
@@ -62,12 +62,12 @@ def read_surface(path: PathLike):
         raise ValueError(f"{os.fspath(path)}: points are not 2D or 3D coordinates")
     if points.shape[1] == 2:
         points = np.column_stack([points, np.zeros(len(points))])
-    tris = np.concatenate(tris).astype(np.int64)
-    _check_indices(tris, len(points), os.fspath(path))
-    return points, tris
+    triangles = np.concatenate(tris).astype(np.int64)
+    _check_indices(triangles, len(points), os.fspath(path))
+    return points, triangles
 
 
-def _meshio_read(meshio, path: PathLike):
+def _meshio_read(meshio: Any, path: PathLike) -> Any:
     """meshio.read with its failures (a truncated file, an index out of range, text that is not
     the format) as a ``ValueError`` naming the file."""
     try:
@@ -121,7 +121,7 @@ def _check_closed(triangles: np.ndarray, where: str) -> None:
 
 
 @contextlib.contextmanager
-def _session(where: str, doing: str):
+def _session(where: str, doing: str) -> Iterator[Any]:
     """A Gmsh session with a fresh model, finalised however it ends; Gmsh's own errors become
     ``ValueError``s naming ``where`` and what it was ``doing``."""
     gmsh = _gmsh()
@@ -138,7 +138,7 @@ def _session(where: str, doing: str):
         gmsh.finalize()
 
 
-def _cells(gmsh, dim: int, none: str):
+def _cells(gmsh: Any, dim: int, none: str) -> Tuple[np.ndarray, np.ndarray]:
     """The linear simplices Gmsh made of dimension ``dim`` (node tags, cells × (dim+1)) and their
     corner coordinates (cells × (dim+1) × dim); ``ValueError(none)`` if there are none."""
     _, _, nodes = gmsh.model.mesh.getElements(dim)
@@ -150,7 +150,7 @@ def _cells(gmsh, dim: int, none: str):
     return cells, np.array([[xyz[t] for t in cell] for cell in cells])
 
 
-def _write(gmsh, out: PathLike, version: float) -> None:
+def _write(gmsh: Any, out: PathLike, version: float) -> None:
     gmsh.option.setNumber("Mesh.MshFileVersion", version)
     gmsh.option.setNumber("Mesh.Binary", 0)
     gmsh.write(os.fspath(out))
@@ -250,11 +250,11 @@ def _check_simple(pts: np.ndarray, where: str) -> None:
         if np.linalg.norm(pts[(i + 1) % n] - pts[i]) <= 1e-12 * scale:
             raise ValueError(f"{where}: corners {i} and {(i + 1) % n} coincide")
 
-    def orient(a, b, c):
+    def orient(a: np.ndarray, b: np.ndarray, c: np.ndarray) -> int:
         v = (b[0] - a[0]) * (c[1] - a[1]) - (b[1] - a[1]) * (c[0] - a[0])
         return 0 if abs(v) <= 1e-12 * scale * scale else (1 if v > 0 else -1)
 
-    def on(a, b, c):  # c on segment ab, given collinear
+    def on(a: np.ndarray, b: np.ndarray, c: np.ndarray) -> bool:  # c on ab, given collinear
         return min(a[0], b[0]) <= c[0] <= max(a[0], b[0]) and \
             min(a[1], b[1]) <= c[1] <= max(a[1], b[1])
 
@@ -296,7 +296,7 @@ def _read_outline(path: PathLike) -> np.ndarray:
     raise ValueError(f"{os.fspath(path)}: no polygon or polyline in the file")
 
 
-def main(argv=None) -> int:
+def main(argv: Optional[Sequence[str]] = None) -> int:
     ap = argparse.ArgumentParser(
         prog="python -m femp.mesh",
         description="Mesh a closed surface (.stl/.obj → tetrahedra) or a planar outline "
