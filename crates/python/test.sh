@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
-# The Python package's tests: build the extension (maturin, release) into a private virtual
-# environment under target/, check the package's types (mypy, stubtest) and run pytest on
-# crates/python/tests. Needs Python ≥ 3.9 with the
+# The Python package's tests: build the wheel (maturin, release), install it into a private
+# virtual environment under target/, check the package's types (mypy, stubtest) and run pytest
+# on crates/python/tests against the installed package. Needs Python ≥ 3.9 with the
 # venv module (PYTHON=… to choose the interpreter) and PyPI for the first run's packages.
 set -euo pipefail
 cd "$(dirname "$0")/../.."
@@ -24,11 +24,17 @@ if [ ! -x "$venv/bin/python" ]; then
 fi
 "$venv/bin/python" -m pip install --quiet --disable-pip-version-check \
     -r crates/python/requirements-test.txt
-VIRTUAL_ENV="$PWD/$venv" "$venv/bin/maturin" develop --release --quiet \
-    --manifest-path crates/python/Cargo.toml
-# The package's types: mypy on its sources, and stubtest holding the native module's stub
-# (femp/_femp.pyi) to what the extension really exports, names and signatures.
+# The wheel a user installs (abi3, release), installed into the environment: the tests run
+# against what ships, not against the source tree.
+wheels=target/python-wheel
+rm -rf "$wheels"
+"$venv/bin/maturin" build --release --quiet --manifest-path crates/python/Cargo.toml \
+    --interpreter "$venv/bin/python" --out "$wheels"
+"$venv/bin/python" -m pip install --quiet --disable-pip-version-check --force-reinstall \
+    --no-deps "$wheels"/femp-*.whl
+# The package's types: mypy on its sources, and stubtest holding the installed native module's
+# stub (femp/_femp.pyi) to what the extension really exports, names and signatures.
 (cd crates/python/python &&
-    "../../../$venv/bin/python" -m mypy --config-file ../pyproject.toml -p femp &&
-    "../../../$venv/bin/python" -m mypy.stubtest femp._femp --mypy-config-file ../pyproject.toml)
-"$venv/bin/python" -m pytest -q crates/python/tests
+    "../../../$venv/bin/python" -m mypy --config-file ../pyproject.toml -p femp)
+"$venv/bin/python" -m mypy.stubtest femp._femp --mypy-config-file crates/python/pyproject.toml
+FEMP_TEST_INSTALLED=1 "$venv/bin/python" -m pytest -q crates/python/tests

@@ -31,3 +31,14 @@ def test_block_runs_as_written(k, tmp_path, monkeypatch):
     exec(compile(code, f"docs/python.md, block {k + 1}", "exec"), {"__name__": "__docs__"})
     # And again: a second run of the same block (outputs already there) must work too.
     exec(compile(code, f"docs/python.md, block {k + 1}", "exec"), {"__name__": "__docs__"})
+
+
+def test_the_installed_package_ships_its_types():
+    import femp
+
+    here = os.path.dirname(femp.__file__)
+    for f in ("py.typed", "_femp.pyi", "__init__.py"):
+        assert os.path.isfile(os.path.join(here, f)), f
+    if os.environ.get("FEMP_TEST_INSTALLED"):
+        # crates/python/test.sh: the tests run against the installed wheel.
+        assert "site-packages" in here, here
