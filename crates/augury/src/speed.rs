@@ -84,29 +84,13 @@ fn plates<const D: usize>(
     boundary_nodes: usize,
 ) -> Result<(Vec<ExplicitBody<D>>, f64), AuguryError> {
     let fem = |e: femp_fem::FemError| AuguryError::Fem(e.to_string());
-    let lift = |m: Mesh<2>| -> Result<Mesh<D>, AuguryError> {
-        let v = m
-            .vertices()
-            .iter()
-            .map(|p| SVector::<f64, D>::from_fn(|a, _| p[a]))
-            .collect();
-        Mesh::new(v, m.cells().to_vec()).map_err(fem)
-    };
-    let lift3 = |m: Mesh<3>| -> Result<Mesh<D>, AuguryError> {
-        let v = m
-            .vertices()
-            .iter()
-            .map(|p| SVector::<f64, D>::from_fn(|a, _| p[a]))
-            .collect();
-        Mesh::new(v, m.cells().to_vec()).map_err(fem)
-    };
     let (lower, upper, h) = if D == 2 {
         let n = (boundary_nodes / 4).max(2);
         let h = 1.0 / n as f64;
         let strip = |y0: f64| {
             rectangle(Vector2::new(0.0, y0), Vector2::new(1.0, y0 + h), n, 1)
                 .map_err(fem)
-                .and_then(lift)
+                .and_then(lift::<2, D>)
         };
         (strip(0.0)?, strip(1.5 * h)?, h)
     } else {
@@ -121,7 +105,7 @@ fn plates<const D: usize>(
                 k,
             )
             .map_err(fem)
-            .and_then(lift3)
+            .and_then(lift::<3, D>)
         };
         (plate(0.0)?, plate(1.5 * h)?, h)
     };
@@ -133,6 +117,16 @@ fn plates<const D: usize>(
         ],
         h,
     ))
+}
+
+/// A mesh generated in `A` dimensions as a `Mesh<D>` (`A = D`: the same mesh).
+fn lift<const A: usize, const D: usize>(m: Mesh<A>) -> Result<Mesh<D>, AuguryError> {
+    let v = m
+        .vertices()
+        .iter()
+        .map(|p| SVector::<f64, D>::from_fn(|a, _| p[a]))
+        .collect();
+    Mesh::new(v, m.cells().to_vec()).map_err(|e| AuguryError::Fem(e.to_string()))
 }
 
 /// One step of `sys` from `state` (restored first, not timed): where its time went. Every call
