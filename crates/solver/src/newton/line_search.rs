@@ -1,0 +1,90 @@
+//! The backtracking line search of a Newton iteration.
+
+use std::time::Instant;
+
+use super::Newton;
+use super::params::{GRADIENT_STEP_RISE, Objective, Problem, StepLimit};
+use super::state::{LineSearch, SolveState};
+
+impl Newton {
+    /// Backtracking from the feasible fraction of the objective's step bound (or 1) until
+    /// Armijo holds — or, while prescribed DOFs are still on their way, until the energy is
+    /// finite; the accepted point is left in `trial`.
+    pub(super) fn line_search(
+        &mut self,
+        state: &mut SolveState,
+        obj: &mut impl Objective,
+        x: &[f64],
+        problem: &Problem,
+        pmax: f64,
+        gp: f64,
+    ) -> LineSearch {
+        let params = problem.params;
+        let stats = &mut state.stats;
+        let t = Instant::now();
+        let bound = obj.max_step(x, &self.p);
+        let mut alpha = if bound.limit.is_some() || bound.alpha < 1.0 {
+            match bound.limit {
+                Some(StepLimit::Ccd) => stats.limited_by_ccd += 1,
+                Some(StepLimit::DetF) => stats.limited_by_det_f += 1,
+                _ => stats.limited_by_other += 1,
+            }
+            (params.feasible_fraction * bound.alpha).min(1.0)
+        } else {
+            1.0
+        };
+        let full_step_feasible = alpha == 1.0;
+        let at_targets = problem.at_targets(x);
+        let mut accepted = None;
+        while alpha * pmax >= params.min_step {
+            for (t, (x, p)) in self.trial.iter_mut().zip(x.iter().zip(&self.p)) {
+                *t = x + alpha * p;
+            }
+            let et = obj.energy(&self.trial);
+            // While prescribed DOFs are still on their way, the energy may rise (the motion
+            // does work on the system): accept any feasible, finite step then. Afterwards,
+            // Armijo.
+            let ok = !at_targets || et <= state.e + params.armijo * alpha * gp;
+            if et.is_finite() && ok {
+                accepted = Some(et);
+                break;
+            }
+            alpha *= 0.5;
+            stats.backtracks += 1;
+        }
+        stats.line_search_s += t.elapsed().as_secs_f64();
+        LineSearch {
+            accepted,
+            alpha,
+            full_step_feasible,
+        }
+    }
+
+    /// The energy at the full step `x + p` (left in `trial`) if it may be taken although no
+    /// step length decreased the energy: that energy is finite and above `e` by no more than
+    /// [`GRADIENT_STEP_RISE`] times the predicted decrease `−gᵀp` (a change the energy's
+    /// evaluation does not resolve: measured on a spinning FEM ring, the energy of a
+    /// converging Newton step came out 0.25–2.3× the predicted decrease *above* `e`), and the
+    /// free gradient's norm there is at most half the current one (Newton's local convergence,
+    /// which the gradient resolves: 2·10⁵× smaller in that case). See
+    /// [`SolveStats::gradient_steps`].
+    pub(super) fn full_step_on_the_gradients_word<O: Objective>(
+        &mut self,
+        obj: &mut O,
+        x: &[f64],
+        e: f64,
+        gp: f64,
+    ) -> Option<f64> {
+        for (t, (x, p)) in self.trial.iter_mut().zip(x.iter().zip(&self.p)) {
+            *t = x + p;
+        }
+        let et = obj.energy(&self.trial);
+        if !(et.is_finite() && et - e <= -GRADIENT_STEP_RISE * gp) {
+            return None;
+        }
+        self.g_trial.iter_mut().for_each(|v| *v = 0.0);
+        obj.gradient(&self.trial, &mut self.g_trial);
+        let norm2 = |g: &[f64]| self.free_dofs.iter().map(|&d| g[d] * g[d]).sum::<f64>();
+        (norm2(&self.g_trial) <= 0.25 * norm2(&self.g)).then_some(et)
+    }
+}

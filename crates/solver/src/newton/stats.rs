@@ -1,0 +1,91 @@
+//! Statistics of a solve, and of consecutive solves.
+
+/// Statistics of one solve.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct SolveStats {
+    /// Newton iterations (factorisations of distinct Hessians).
+    pub iterations: usize,
+    /// Line-search halvings, in total.
+    pub backtracks: usize,
+    /// Iterations whose first trial step was limited by each kind of bound.
+    pub limited_by_ccd: usize,
+    /// … by det F.
+    pub limited_by_det_f: usize,
+    /// … by something else.
+    pub limited_by_other: usize,
+    /// `‖p‖_∞ / dt` of the last iteration.
+    pub final_residual: f64,
+    /// Energy at the returned point.
+    pub final_energy: f64,
+    /// Diagonal shifts applied to make a Hessian factorisable.
+    pub regularizations: usize,
+    /// Iterations that used the exact Hessian ([`HessianStrategy::ExactWhenDefinite`]).
+    pub exact_iterations: usize,
+    /// Iterations that reused the previous iteration's Hessian
+    /// ([`NewtonParams::reuse_hessian_below`]); they assembled no Hessian.
+    pub reused_hessians: usize,
+    /// Exact Hessians found indefinite (those iterations used the projected one).
+    pub exact_rejections: usize,
+    /// Solves ended as stationary to working precision before `‖p‖_∞/Δt` reached the
+    /// tolerance: the predicted decrease `−gᵀp` stayed below `ROUNDOFF·|E|` while ‖p‖ stopped
+    /// shrinking, or no step decreased the energy and `−gᵀp ≤ 10⁴·ROUNDOFF·|E|`.
+    pub roundoff_stops: usize,
+    /// Full Newton steps taken on the gradient's word: no step length decreased the energy,
+    /// but the full step was feasible, raised the energy by at most 10× (`GRADIENT_STEP_RISE`)
+    /// the predicted decrease `−gᵀp` and at least halved the free gradient — the energy's
+    /// evaluation cannot resolve so small a change (its summands are far larger than their
+    /// sum), the gradient can.
+    pub gradient_steps: usize,
+    /// Symbolic analyses (sparsity pattern changes).
+    pub symbolic_analyses: usize,
+    /// Conjugate-gradient iterations (matrix products), with [`LinearSolver::Pcg`].
+    pub pcg_iterations: usize,
+    /// Directions that CG did not deliver on a projected Hessian and Cholesky did.
+    pub pcg_fallbacks: usize,
+    /// Loosely solved directions ([`Forcing::Adaptive`]) solved again to `rtol` because they
+    /// passed the convergence test.
+    pub pcg_tightened: usize,
+    /// Seconds in conjugate gradients.
+    pub pcg_s: f64,
+    /// Seconds assembling gradient and Hessian (objective calls and CSC build). Work, not wall
+    /// time: the gradient is computed while another thread builds the CSC and factorises.
+    pub assembly_s: f64,
+    /// Seconds in ordering and symbolic factorisation.
+    pub symbolic_s: f64,
+    /// Seconds in numeric factorisation.
+    pub numeric_s: f64,
+    /// Seconds in triangular solves.
+    pub solve_s: f64,
+    /// Seconds in the line search (feasible-step bound and energy evaluations).
+    pub line_search_s: f64,
+}
+
+/// Statistics of consecutive solves (the friction loop's re-solves within a step, a run's
+/// steps): counters and times add up; `final_residual` and `final_energy` are the last solve's.
+impl std::ops::AddAssign<&SolveStats> for SolveStats {
+    fn add_assign(&mut self, s: &SolveStats) {
+        self.iterations += s.iterations;
+        self.backtracks += s.backtracks;
+        self.limited_by_ccd += s.limited_by_ccd;
+        self.limited_by_det_f += s.limited_by_det_f;
+        self.limited_by_other += s.limited_by_other;
+        self.final_residual = s.final_residual;
+        self.final_energy = s.final_energy;
+        self.regularizations += s.regularizations;
+        self.roundoff_stops += s.roundoff_stops;
+        self.gradient_steps += s.gradient_steps;
+        self.exact_iterations += s.exact_iterations;
+        self.reused_hessians += s.reused_hessians;
+        self.exact_rejections += s.exact_rejections;
+        self.symbolic_analyses += s.symbolic_analyses;
+        self.pcg_iterations += s.pcg_iterations;
+        self.pcg_fallbacks += s.pcg_fallbacks;
+        self.pcg_tightened += s.pcg_tightened;
+        self.pcg_s += s.pcg_s;
+        self.assembly_s += s.assembly_s;
+        self.symbolic_s += s.symbolic_s;
+        self.numeric_s += s.numeric_s;
+        self.solve_s += s.solve_s;
+        self.line_search_s += s.line_search_s;
+    }
+}
