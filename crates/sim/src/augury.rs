@@ -308,13 +308,9 @@ impl<const D: usize> AuguryState<D> {
         let grown: Vec<Vec<SVector<f64, D>>> = fem
             .iter()
             .map(|b| {
-                let Some(first) = b.x.first() else {
-                    return Vec::new();
-                };
-                let (lo, hi) =
-                    b.x.iter()
-                        .fold((*first, *first), |(l, h), v| (l.inf(v), h.sup(v)));
-                vec![lo.add_scalar(-margin), hi.add_scalar(margin)]
+                crate::overlap::bounding_box(&b.x).map_or_else(Vec::new, |(lo, hi)| {
+                    vec![lo.add_scalar(-margin), hi.add_scalar(margin)]
+                })
             })
             .collect();
         let xs: Vec<&[SVector<f64, D>]> = grown.iter().map(|v| &v[..]).collect();
@@ -417,11 +413,8 @@ impl<const D: usize> AuguryState<D> {
 /// The distance between the bounding boxes of two point sets (0 where they overlap): no point
 /// of one is nearer the other than this.
 fn box_gap<const D: usize>(a: &[SVector<f64, D>], b: &[SVector<f64, D>]) -> f64 {
-    let bbox = |x: &[SVector<f64, D>]| {
-        x.first()
-            .map(|f| x.iter().fold((*f, *f), |(l, h), v| (l.inf(v), h.sup(v))))
-    };
-    let (Some((alo, ahi)), Some((blo, bhi))) = (bbox(a), bbox(b)) else {
+    use crate::overlap::bounding_box;
+    let (Some((alo, ahi)), Some((blo, bhi))) = (bounding_box(a), bounding_box(b)) else {
         return 0.0;
     };
     (0..D)

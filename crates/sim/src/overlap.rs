@@ -169,16 +169,8 @@ pub(crate) fn element_inside<const D: usize>(
 /// The pairs `(i, j)`, `i < j`, of bodies whose bounding boxes (of `x[i]`) overlap, by sorting
 /// them along the first axis and sweeping.
 pub(crate) fn box_pairs<const D: usize>(x: &[&[SVector<f64, D>]]) -> Vec<(usize, usize)> {
-    let boxes: Vec<Option<(SVector<f64, D>, SVector<f64, D>)>> = x
-        .iter()
-        .map(|p| {
-            let first = p.first()?;
-            Some(
-                p.iter()
-                    .fold((*first, *first), |(l, h), v| (l.inf(v), h.sup(v))),
-            )
-        })
-        .collect();
+    let boxes: Vec<Option<(SVector<f64, D>, SVector<f64, D>)>> =
+        x.iter().map(|p| bounding_box(p)).collect();
     let mut order: Vec<usize> = (0..x.len()).filter(|&i| boxes[i].is_some()).collect();
     order.sort_by(|&i, &j| {
         let (a, b) = (boxes[i].unwrap().0[0], boxes[j].unwrap().0[0]);
@@ -199,4 +191,15 @@ pub(crate) fn box_pairs<const D: usize>(x: &[&[SVector<f64, D>]]) -> Vec<(usize,
     }
     out.sort_unstable();
     out
+}
+
+/// The axis-aligned bounding box `(min, max)` of points (`None` for none).
+pub(crate) fn bounding_box<const D: usize>(
+    x: &[SVector<f64, D>],
+) -> Option<(SVector<f64, D>, SVector<f64, D>)> {
+    let first = x.first()?;
+    Some(
+        x.iter()
+            .fold((*first, *first), |(l, h), v| (l.inf(v), h.sup(v))),
+    )
 }

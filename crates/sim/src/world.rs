@@ -418,13 +418,8 @@ impl<const D: usize> World<D> {
                         } else {
                             &fem[k].x
                         };
-                        let Some(first) = pts.first() else {
-                            return f64::INFINITY;
-                        };
-                        let (lo, hi) = pts
-                            .iter()
-                            .fold((*first, *first), |(l, h), p| (l.inf(p), h.sup(p)));
-                        (hi - lo).max()
+                        crate::overlap::bounding_box(pts)
+                            .map_or(f64::INFINITY, |(lo, hi)| (hi - lo).max())
                     };
                     let (ei, ej) = (extent(si), extent(sj));
                     let (size, small) = if ei <= ej {
@@ -602,10 +597,7 @@ impl<const D: usize> World<D> {
     /// Reject bodies that start overlapping (BFEMP eq. 15): a particle or FEM vertex inside (or on
     /// the boundary of) another body's elements, or MPM bodies whose particles interleave.
     fn check_overlaps(&self) -> Result<(), SimError> {
-        let bbox = |x: &[SVector<f64, D>]| {
-            x.first()
-                .map(|f| x.iter().fold((*f, *f), |(l, h), v| (l.inf(v), h.sup(v))))
-        };
+        let bbox = crate::overlap::bounding_box::<D>;
         let body_box: Vec<_> = self.fem.iter().map(|b| bbox(&b.x)).collect();
         let mpm_box: Vec<_> = self.mpm.as_ref().map_or_else(Vec::new, |m| {
             m.bodies
