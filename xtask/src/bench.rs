@@ -9,6 +9,8 @@
 //! cargo xtask bench                                  # both cases, the scenes' own ordering
 //! cargo xtask bench --only plate --ordering amd nested_dissection
 //! cargo xtask bench --only twist --steps 10
+//! cargo xtask bench --friction-update-below 0 0.01   # friction between solves / in Newton too
+//! cargo xtask bench --newton-test nodes points         # Newton's test on grid nodes / particles
 //! ```
 //!
 //! `block_on_plate_3d` runs its first `--steps` steps (default 2: the first lands the block, the
@@ -21,7 +23,7 @@ use std::time::Instant;
 
 use anyhow::{Context, Result, bail};
 use femp::World;
-use femp::scene::{self, OrderingSpec};
+use femp::scene::{self, NewtonTestSpec, OrderingSpec};
 
 struct Case {
     name: &'static str,
@@ -48,13 +50,16 @@ const CASES: [Case; 2] = [
 ];
 
 const USAGE: &str = "usage: cargo xtask bench [--only plate|twist …] [--steps N] \
-                     [--ordering auto|amd|nested_dissection …]";
+                     [--ordering auto|amd|nested_dissection …] [--friction-update-below V …] \
+                     [--newton-test nodes|points …]";
 
 /// Entry point (arguments after `bench`).
 pub fn main(args: &[String]) -> Result<()> {
     let mut only: Vec<String> = Vec::new();
     let mut orderings: Vec<OrderingSpec> = Vec::new();
     let mut steps: Option<usize> = None;
+    let mut below: Vec<f64> = Vec::new();
+    let mut tests: Vec<NewtonTestSpec> = Vec::new();
     let mut it = args.iter().peekable();
     while let Some(a) = it.next() {
         match a.as_str() {
@@ -81,6 +86,25 @@ pub fn main(args: &[String]) -> Result<()> {
                     });
                 }
             }
+            "--friction-update-below" => {
+                while let Some(n) = it.next_if(|n| !n.starts_with("--")) {
+                    below.push(
+                        n.parse()
+                            .ok()
+                            .filter(|v: &f64| *v >= 0.0 && v.is_finite())
+                            .with_context(|| format!("`{n}` is not a speed ≥ 0\n{USAGE}"))?,
+                    );
+                }
+            }
+            "--newton-test" => {
+                while let Some(n) = it.next_if(|n| !n.starts_with("--")) {
+                    tests.push(match n.as_str() {
+                        "nodes" => NewtonTestSpec::Nodes,
+                        "points" => NewtonTestSpec::Points,
+                        o => bail!("unknown Newton test `{o}`\n{USAGE}"),
+                    });
+                }
+            }
             "-h" | "--help" => {
                 println!("{USAGE}");
                 return Ok(());
@@ -93,24 +117,52 @@ pub fn main(args: &[String]) -> Result<()> {
     }
     let root = super::validate::workspace_root();
     println!(
-        "| case | ordering | step | t (s) | Newton it. | friction it. | contact terms | wall (s) | assembly | symbolic | numeric | solve | line search |"
+        "| case | ordering | friction update below | Newton test | step | t (s) | Newton it. | friction it. | friction converged | contact terms | wall (s) | assembly | symbolic | numeric | solve | line search |"
     );
-    println!("|---|---|---|---|---|---|---|---|---|---|---|---|---|");
+    println!("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|");
     for case in CASES
         .iter()
         .filter(|c| only.is_empty() || only.iter().any(|o| o == c.name))
     {
         for &ordering in &orderings {
-            run_case(&root, case, ordering, steps.unwrap_or(case.steps))?;
+            // Each variant of the friction update, or the scene's own.
+            let variants: Vec<Option<f64>> = if below.is_empty() {
+                vec![None]
+            } else {
+                below.iter().map(|&b| Some(b)).collect()
+            };
+            let test_variants: Vec<Option<NewtonTestSpec>> = if tests.is_empty() {
+                vec![None]
+            } else {
+                tests.iter().map(|&t| Some(t)).collect()
+            };
+            for &b in &variants {
+                for &t in &test_variants {
+                    run_case(&root, case, (ordering, b, t), steps.unwrap_or(case.steps))?;
+                }
+            }
         }
     }
     Ok(())
 }
 
-fn run_case(root: &Path, case: &Case, ordering: OrderingSpec, steps: usize) -> Result<()> {
+fn run_case(
+    root: &Path,
+    case: &Case,
+    (ordering, below, test): (OrderingSpec, Option<f64>, Option<NewtonTestSpec>),
+    steps: usize,
+) -> Result<()> {
     let dir = root.join("fixtures/scenes");
     let mut s = scene::load(&dir.join(case.file))?;
     s.spec.solver.ordering = ordering;
+    if let Some(b) = below {
+        s.spec.solver.friction_update_below = b;
+    }
+    if let Some(t) = test {
+        s.spec.solver.newton_test = t;
+    }
+    let below = s.spec.solver.friction_update_below;
+    let test = s.spec.solver.newton_test;
     let mut world = World::<3>::build(s)?;
     for _ in 0..case.warm {
         world.step()?;
@@ -124,13 +176,14 @@ fn run_case(root: &Path, case: &Case, ordering: OrderingSpec, steps: usize) -> R
         wall += w;
         let st = &r.stats;
         println!(
-            "| {} | {:?} | {} | {:.3} | {} | {} | {} | {w:.2} | {:.2} | {:.2} | {:.2} | {:.2} | {:.2} |",
+            "| {} | {:?} | {below} | {test:?} | {} | {:.3} | {} | {} | {} | {} | {w:.2} | {:.2} | {:.2} | {:.2} | {:.2} | {:.2} |",
             case.name,
             ordering,
             world.step,
             world.time,
             r.newton_iterations,
             r.friction_iterations,
+            if r.friction_converged { "yes" } else { "no" },
             r.contact_terms,
             st.assembly_s,
             st.symbolic_s,
@@ -140,7 +193,7 @@ fn run_case(root: &Path, case: &Case, ordering: OrderingSpec, steps: usize) -> R
         );
     }
     println!(
-        "| {} | {:?} | mean | | {:.1} | | | {:.2} | | | | | |",
+        "| {} | {:?} | {below} | {test:?} | mean | | {:.1} | | | | {:.2} | | | | | |",
         case.name,
         ordering,
         newton as f64 / steps as f64,

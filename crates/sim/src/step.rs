@@ -12,7 +12,7 @@ use crate::error::SimError;
 use crate::objective::{Dofs, Inertia, Penalty, StepObjective};
 use crate::report::StepReport;
 use crate::scene::BoundaryCondition;
-use crate::scene::spec::{LinearSpec, OrderingSpec, ProjectionSpec};
+use crate::scene::spec::{LinearSpec, NewtonTestSpec, OrderingSpec, ProjectionSpec};
 use crate::world::{MethodState, Transfer, World};
 
 /// A BFEMP world's state at the start of a step ([`World::save`]): the positions (also the
@@ -294,6 +294,7 @@ impl<const D: usize> World<D> {
             n: n_dofs,
         };
         let any_friction = self.pairs.iter().any(|p| p.friction.mu > 0.0);
+        let point_test = self.scene.spec.solver.newton_test == NewtonTestSpec::Points;
         let mut report = StepReport {
             friction_converged: true,
             transfers_s,
@@ -320,6 +321,7 @@ impl<const D: usize> World<D> {
                 w,
             )
             .contact_only();
+            proj.point_test = point_test;
             // Where the predictor is reached along a feasible path and no barrier term is active
             // there, it is the projection's minimiser (the objective is 0 there and nowhere
             // negative): Newmark's predictor stays as it is, bit for bit.
@@ -369,6 +371,7 @@ impl<const D: usize> World<D> {
             &x0,
             w,
         );
+        obj.point_test = point_test;
         let _ = start_at_predictor(&mut obj, &x0, &fixed, &target, &x_hat, &mut x);
         report.setup_s = clock_setup + clock.elapsed().as_secs_f64();
         let max_fric = if any_friction {
@@ -376,6 +379,7 @@ impl<const D: usize> World<D> {
         } else {
             1
         };
+        let relag_below = self.scene.spec.solver.friction_update_below;
         let (step, time) = (self.step, self.time);
         let failed = |(e, j): (femp_solver::SolveError, usize)| match e {
             femp_solver::SolveError::Interrupted { .. } => SimError::Interrupted { step, time },
@@ -407,7 +411,7 @@ impl<const D: usize> World<D> {
                 &x0,
                 (&fixed, &target),
                 params,
-                (any_friction, max_fric),
+                (any_friction, max_fric, relag_below),
                 report,
             )
         };
@@ -861,50 +865,61 @@ impl<const D: usize> World<D> {
 /// The lagged-friction loop around the minimisation (Algorithm 1) from `x`, friction lagged
 /// at the step's start `x0` first; the failing solve's error and friction iteration if one
 /// fails.
+///
+/// The fixed point is reached when a solve's solution is where its friction operator was
+/// evaluated (to the Newton tolerance, in velocity units), or when neither the operator
+/// solved with nor the one at the solution has a friction term (then both are the same
+/// objective). With `relag_below > 0` the Newton iterations re-evaluate the operator at
+/// their iterate once an increment is below it (m/s), so most friction iterations cost one
+/// Newton iteration rather than a solve (at most half a solve's iterations update it);
+/// `max_fric` bounds the solves.
 #[allow(clippy::too_many_arguments)]
-fn friction_loop<const D: usize>(
+pub(crate) fn friction_loop<const D: usize>(
     newton: &mut femp_solver::Newton,
     obj: &mut StepObjective<'_, D>,
     x: &mut [f64],
     x0: &[f64],
     (fixed, target): (&[bool], &[f64]),
     params: &NewtonParams,
-    (any_friction, max_fric): (bool, usize),
+    (any_friction, max_fric, relag_below): (bool, usize, f64),
     report: &mut StepReport,
 ) -> Result<(), (femp_solver::SolveError, usize)> {
+    obj.lag = Default::default();
     if any_friction {
         // Algorithm 1 lags the friction operator at the start of the step.
         obj.lag_friction(x0);
+        obj.lag.below = relag_below;
     }
     obj.prefer_exact = params.hessian == HessianStrategy::ExactWhenDefinite;
-    let mut prev = x.to_vec();
-    for j in 0..max_fric {
-        report.friction_iterations = j + 1;
+    let mut solves = 0;
+    loop {
+        // Half a solve's iterations at most update the operator: the rest converge on it.
+        obj.lag.limit = obj.lag.count + params.max_iterations / 2;
+        solves += 1;
         let stats = newton
             .minimize_to(obj, x, fixed, target, params)
-            .map_err(|e| (e, j))?;
+            .map_err(|e| (e, obj.lag.count.max(1) - 1))?;
+        report.friction_iterations = obj.lag.count.max(1);
         report.newton_iterations += stats.iterations;
         report.stats += &stats;
         if !any_friction {
             break;
         }
-        let change = x
-            .iter()
-            .zip(&prev)
-            .map(|(a, b)| (a - b).abs())
-            .fold(0.0, f64::max)
-            / params.dt;
-        if j > 0 && change < params.tolerance {
+        let change = obj.lag_distance(x) / params.dt;
+        if change < params.tolerance {
             break;
         }
-        if j + 1 == max_fric {
+        if solves >= max_fric {
             // The last solve's friction operator stays (the forces reported with the step
             // are those of the state it solved for).
             report.friction_converged = false;
             break;
         }
-        prev.copy_from_slice(x);
+        let before = obj.lag.terms;
         obj.lag_friction(x);
+        if before == 0 && obj.lag.terms == 0 {
+            break;
+        }
     }
     Ok(())
 }

@@ -1561,6 +1561,7 @@ fn solve_statistics_add_up() {
         exact_rejections: k,
         roundoff_stops: k,
         gradient_steps: k,
+        lagged_updates: k,
         symbolic_analyses: k,
         pcg_iterations: k,
         pcg_fallbacks: k,
@@ -1577,4 +1578,95 @@ fn solve_statistics_add_up() {
     let mut expect = stats(3);
     (expect.final_residual, expect.final_energy) = (2.0, 2.0);
     assert_eq!(acc, expect);
+}
+
+/// `E(x) = ½‖x − c(y)‖²` with a lagged parameter `y` and `c(y) = a + B y` (‖B‖ < 1): solved
+/// with `y` fixed the minimiser is `c(y)`; the fixed point `x = c(x)` is `(I − B)⁻¹ a`.
+/// [`Objective::update_lagged`] sets `y = x` once the last increment is below `below`.
+struct Lagged {
+    a: DVector<f64>,
+    b: DMatrix<f64>,
+    y: DVector<f64>,
+    below: f64,
+    updates: usize,
+}
+
+impl Lagged {
+    fn c(&self) -> DVector<f64> {
+        &self.a + &self.b * &self.y
+    }
+}
+
+impl Objective for Lagged {
+    fn num_dofs(&self) -> usize {
+        self.a.len()
+    }
+    fn update_lagged(&mut self, x: &[f64], residual: f64) -> bool {
+        if residual < self.below {
+            self.y = DVector::from_column_slice(x);
+            self.updates += 1;
+            return true;
+        }
+        false
+    }
+    fn energy(&mut self, x: &[f64]) -> f64 {
+        0.5 * (DVector::from_column_slice(x) - self.c()).norm_squared()
+    }
+    fn gradient(&mut self, x: &[f64], g: &mut [f64]) {
+        g.copy_from_slice((DVector::from_column_slice(x) - self.c()).as_slice());
+    }
+    fn hessian(&mut self, _x: &[f64], h: &mut Triplets) {
+        for i in 0..self.a.len() {
+            h.push(i, i, 1.0);
+        }
+    }
+}
+
+/// Lagged terms updated inside the Newton iterations: the solve ends at the fixed point of the
+/// lag (not at the minimiser for the first `y`), every update is counted, and the energy is
+/// re-evaluated after one — a line search against the stale energy would accept no step once
+/// `c(y)` jumps (the new objective is larger at `x` than the old one was).
+#[test]
+fn lagged_terms_updated_in_the_iterations_reach_their_fixed_point() {
+    let n = 6;
+    let a = DVector::from_fn(n, |i, _| 1.0 + i as f64);
+    let b = DMatrix::from_fn(n, n, |i, j| if i == j { 0.5 } else { 0.05 });
+    let fixed_point = (DMatrix::identity(n, n) - &b)
+        .lu()
+        .solve(&a)
+        .expect("I − B is invertible");
+    let params = NewtonParams {
+        tolerance: 1e-9,
+        dt: 1.0,
+        ..Default::default()
+    };
+    // Without updates: the minimiser for y = 0, in two iterations (a quadratic).
+    let mut frozen = Lagged {
+        a: a.clone(),
+        b: b.clone(),
+        y: DVector::zeros(n),
+        below: 0.0,
+        updates: 0,
+    };
+    let mut x = vec![0.0; n];
+    let stats = Newton::new()
+        .minimize(&mut frozen, &mut x, &vec![false; n], &params)
+        .unwrap();
+    assert_eq!((stats.iterations, stats.lagged_updates), (2, 0));
+    assert!((DVector::from_column_slice(&x) - &a).amax() < 1e-12);
+    // With updates: each iteration is one step of the fixed-point map (contraction 0.75).
+    let mut lagged = Lagged {
+        below: f64::INFINITY,
+        ..frozen
+    };
+    lagged.y = DVector::zeros(n);
+    let mut x = vec![0.0; n];
+    let stats = Newton::new()
+        .minimize(&mut lagged, &mut x, &vec![false; n], &params)
+        .unwrap();
+    let err = (DVector::from_column_slice(&x) - &fixed_point).amax();
+    assert!(err < 1e-8, "{err:e} from the fixed point");
+    assert_eq!(stats.lagged_updates, lagged.updates);
+    assert_eq!(stats.lagged_updates, stats.iterations - 1);
+    assert!(stats.iterations > 20, "{stats:?}");
 }

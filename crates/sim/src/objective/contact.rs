@@ -264,7 +264,10 @@ impl<'a, const D: usize> Contact<'a, D> {
     }
 
     /// Recompute the lagged friction operator at `cfg` (Algorithm 1, lines 5 and 9).
-    pub fn lag_friction(&mut self, cfg: &Configuration<D>) {
+    /// Returns the number of friction terms.
+    pub fn lag_friction(&mut self, cfg: &Configuration<D>) -> usize {
+        // The friction Hessian changes with the operator: no reuse of a matrix built before.
+        self.hess_terms = None;
         for k in 0..self.pairs.len() {
             if self.pairs[k].friction.mu == 0.0 {
                 self.friction[k].clear();
@@ -283,6 +286,7 @@ impl<'a, const D: usize> Contact<'a, D> {
                 &cfg.fem_x[pair.facets_of],
             );
         }
+        self.friction.iter().map(Vec::len).sum()
     }
 
     /// The DOF blocks a pair's local point `k` depends on: calls `f(dof_base, weight, entry)`

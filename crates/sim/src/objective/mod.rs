@@ -100,6 +100,10 @@ pub struct StepObjective<'a, const D: usize> {
     /// The gradient computes the barrier's exact Hessian for the cache (the solver asks for
     /// [`Objective::exact_hessian`] first: `HessianStrategy::ExactWhenDefinite`).
     pub(crate) prefer_exact: bool,
+    /// Newton's convergence test measures an increment on the particles and FEM vertices
+    /// ([`ParticleElasticity::increment_size`]) instead of on the unknowns
+    /// (`solver.newton_test`).
+    pub(crate) point_test: bool,
     /// Where the time went.
     pub(crate) timing: ObjectiveTiming,
     /// Number of active contact terms and smallest contact distance at the last gradient.
@@ -107,6 +111,27 @@ pub struct StepObjective<'a, const D: usize> {
     /// Whether the elastic terms (and their det F > 0 bounds) are part of the objective; not
     /// in the predictor projection of contact-stabilised Newmark ([`Self::contact_only`]).
     elastic: bool,
+    /// The friction lag: where the operator was last evaluated, how often, and whether (and
+    /// until when) Newton iterations may update it ([`Objective::update_lagged`]).
+    pub(crate) lag: FrictionLag<D>,
+}
+
+/// Where and how often a step's lagged friction operator was evaluated, and the policy that
+/// lets the Newton iterations re-evaluate it (`solver.friction_update`).
+#[derive(Clone, Debug, Default)]
+pub(crate) struct FrictionLag<const D: usize> {
+    /// The DOF values the operator was last evaluated at.
+    pub at: Vec<f64>,
+    /// The points it depends on there: every particle, then every FEM body's vertices.
+    pub points: Vec<SVector<f64, D>>,
+    /// Evaluations so far.
+    pub count: usize,
+    /// Friction terms of the last evaluation.
+    pub terms: usize,
+    /// Newton iterations may re-evaluate the operator while `count` is below this …
+    pub limit: usize,
+    /// … and the last iteration's increment ‖p‖∞/Δt (m/s) is below this (0: never).
+    pub below: f64,
 }
 
 impl<'a, const D: usize> StepObjective<'a, D> {
@@ -135,9 +160,11 @@ impl<'a, const D: usize> StepObjective<'a, D> {
             contact: Contact::new(mpm, fem, pairs),
             motion: (Vec::new(), Vec::new()),
             prefer_exact: false,
+            point_test: false,
             timing: ObjectiveTiming::default(),
             last_contacts: (0, f64::INFINITY),
             elastic: true,
+            lag: FrictionLag::default(),
         }
     }
 
@@ -175,7 +202,28 @@ impl<'a, const D: usize> StepObjective<'a, D> {
     pub(crate) fn lag_friction(&mut self, x: &[f64]) {
         self.unpack(x);
         self.cfg.touch();
-        self.contact.lag_friction(&self.cfg);
+        self.lag.terms = self.contact.lag_friction(&self.cfg);
+        self.lag.count += 1;
+        self.lag.at.clear();
+        self.lag.at.extend_from_slice(x);
+        self.lag.points.clear();
+        self.lag.points.extend_from_slice(&self.cfg.xq);
+        for b in &self.cfg.fem_x {
+            self.lag.points.extend_from_slice(b);
+        }
+    }
+
+    /// How far the points the friction operator depends on (particles, FEM vertices) are at
+    /// `x` from where it was last evaluated: the largest distance. Measured on the points,
+    /// not on the unknowns: a grid node a particle barely touches (masses down to 1e-13 of
+    /// the others') can swing between lagged solves without moving any particle — the
+    /// operator, a function of the points, is then the same.
+    pub(crate) fn lag_distance(&mut self, x: &[f64]) -> f64 {
+        self.unpack(x);
+        let now = self.cfg.xq.iter().chain(self.cfg.fem_x.iter().flatten());
+        now.zip(&self.lag.points)
+            .map(|(a, b)| (a - b).amax())
+            .fold(0.0, f64::max)
     }
 
     /// The contact force of every pair at `x` ([`Contact::pair_forces`]).
@@ -311,6 +359,24 @@ impl<const D: usize> Objective for StepObjective<'_, D> {
 
     fn hessian_terms_unchanged(&mut self) -> bool {
         self.contact.hessian_terms_unchanged()
+    }
+
+    fn increment_size(&mut self, _x: &[f64], p: &[f64]) -> Option<f64> {
+        if !self.point_test {
+            return None;
+        }
+        let n = self.dofs.n_grid * D;
+        let particles = self.particles.increment_size(&p[..n]);
+        Some(p[n..].iter().fold(particles, |m, v| m.max(v.abs())))
+    }
+
+    fn update_lagged(&mut self, x: &[f64], residual: f64) -> bool {
+        let lag = &self.lag;
+        if lag.count == 0 || lag.count >= lag.limit || !(residual < lag.below) || lag.at == x {
+            return false;
+        }
+        self.lag_friction(x);
+        true
     }
 
     fn max_step(&mut self, x: &[f64], p: &[f64]) -> StepBound {

@@ -148,6 +148,33 @@ impl<'a, const D: usize> ParticleElasticity<'a, D> {
         transfer::interpolate(&m.stencils, pg, dq).is_ok()
     }
 
+    /// The largest increment grid increments `p` (D per node) make at a particle: of its
+    /// position and, times the grid spacing h, of its deformation gradient — bounded by
+    /// `Σ_i (w_iq + h‖∇w_iq‖) ‖p_i‖_∞` over its stencil, which also bounds the change of its
+    /// APIC affine velocity. A node a particle touches with weight w moves it by w of its own
+    /// increment (and its F by about √w), so nodes nearly without mass do not hold the test up.
+    pub fn increment_size(&self, p: &[f64]) -> f64 {
+        let Some(m) = self.mpm else {
+            return 0.0;
+        };
+        let st = &m.stencils;
+        let h = st.grid().h();
+        (0..m.x.len())
+            .into_par_iter()
+            .with_min_len(512)
+            .map(|q| {
+                let mut s = 0.0;
+                st.particle(q).for_each(|i, w, grad| {
+                    let pi = p[i * D..i * D + D]
+                        .iter()
+                        .fold(0.0f64, |a, v| a.max(v.abs()));
+                    s += (w + h * grad.norm()) * pi;
+                });
+                s
+            })
+            .reduce(|| 0.0, f64::max)
+    }
+
     /// The largest step fraction (≤ 1) along grid increments `pg` before a particle's det F
     /// reaches zero.
     pub fn det_bound(&self, cfg: &Configuration<D>, pg: &[SVector<f64, D>]) -> f64 {

@@ -496,3 +496,149 @@ fn contact_only_objective_is_inertia_and_barrier_3d() {
         .replace("0.06", "0.01");
     check_contact_only::<3>(&json, &stretched);
 }
+
+/// The lagged-friction loop ends at its fixed point: re-evaluating the friction operator at
+/// the loop's solution and solving again moves no particle or vertex by more than the Newton
+/// tolerance over a step — with the operator updated between solves only and inside the
+/// Newton iterations too (`solver.friction_update_below`). Stopping one friction iteration
+/// early, or measuring the fixed point on grid nodes a particle barely touches, fails it.
+fn check_friction_fixed_point<const D: usize>(json: &str, below: f64) {
+    use crate::step::friction_loop;
+    use femp_solver::{Newton, NewtonParams};
+    let mut w = world::<D>(json);
+    let setup = w.setup(w.bfemp().unwrap().integrator).unwrap();
+    let tol = 1e-6;
+    let params = NewtonParams {
+        tolerance: tol,
+        dt: w.dt,
+        ..Default::default()
+    };
+    let mut obj = setup.objective(&w);
+    let mut newton = Newton::new();
+    let mut x = setup.x0.clone();
+    let mut report = crate::report::StepReport::default();
+    let problem = (&setup.fixed[..], &setup.target[..]);
+    friction_loop(
+        &mut newton,
+        &mut obj,
+        &mut x,
+        &setup.x0,
+        problem,
+        &params,
+        (true, 100, below),
+        &mut report,
+    )
+    .unwrap();
+    assert!(report.friction_converged, "{D}D: {report:?}");
+    assert!(
+        report.friction_iterations > 2 && obj.lag.terms > 0,
+        "{D}D: friction must matter here ({} iterations, {} terms)",
+        report.friction_iterations,
+        obj.lag.terms
+    );
+    obj.lag_friction(&x);
+    let mut again = x.clone();
+    newton
+        .minimize_to(&mut obj, &mut again, problem.0, problem.1, &params)
+        .unwrap();
+    let moved = obj.lag_distance(&again) / w.dt;
+    assert!(
+        moved < 2.0 * tol,
+        "{D}D, update below {below}: a further friction iteration moves a point by {moved:e} m/s"
+    );
+}
+
+#[test]
+fn friction_loop_ends_at_its_fixed_point() {
+    for below in [0.0, 1e-2] {
+        check_friction_fixed_point::<2>(SCENE_2D, below);
+        check_friction_fixed_point::<3>(SCENE_3D, below);
+    }
+}
+
+/// The friction fixed point is measured on the points the operator depends on: all grid
+/// nodes moved by δ move every particle by δ (partition of unity); a grid node moved by 1 m
+/// moves no particle by more than its weight, at most the node's mass over the lightest
+/// particle's — a node a particle barely touches does not count; an FEM vertex counts itself.
+#[test]
+fn lag_distance_is_measured_on_particles_and_vertices() {
+    let mut w = world::<2>(SCENE_2D);
+    let setup = w.setup(w.bfemp().unwrap().integrator).unwrap();
+    let (n, n_grid) = (setup.n_dofs, setup.n_grid);
+    let lightest_particle = w
+        .mpm
+        .as_ref()
+        .unwrap()
+        .mass
+        .iter()
+        .copied()
+        .fold(f64::INFINITY, f64::min);
+    let mut obj = setup.objective(&w);
+    obj.lag_friction(&setup.x0);
+    assert_eq!(obj.lag_distance(&setup.x0), 0.0);
+    let shifted = |dofs: &dyn Fn(usize) -> f64| -> Vec<f64> {
+        (0..n).map(|k| setup.x0[k] + dofs(k)).collect()
+    };
+    let d = 1e-3;
+    let all = shifted(&|k| if k < 2 * n_grid && k % 2 == 0 { d } else { 0.0 });
+    assert!(
+        (obj.lag_distance(&all) - d).abs() < 1e-12,
+        "{}",
+        obj.lag_distance(&all)
+    );
+    let light = (0..n_grid)
+        .min_by(|&a, &b| setup.mass[2 * a].total_cmp(&setup.mass[2 * b]))
+        .unwrap();
+    let one = shifted(&|k| if k == 2 * light { 1.0 } else { 0.0 });
+    let moved = obj.lag_distance(&one);
+    let bound = setup.mass[2 * light] / lightest_particle;
+    assert!(
+        moved > 0.0 && moved <= bound * (1.0 + 1e-12),
+        "{moved} m against ≤ {bound} m"
+    );
+    assert!(
+        bound < 0.1,
+        "the lightest node carries {bound} of a particle"
+    );
+    let vertex = shifted(&|k| if k == 2 * n_grid + 1 { d } else { 0.0 });
+    assert!((obj.lag_distance(&vertex) - d).abs() < 1e-15);
+}
+
+/// Newton's test on points (`solver.newton_test: "points"`): absent unless asked for; a
+/// translation of every grid node by δ moves every particle by δ and its F not at all, so the
+/// size is at least δ (and at most δ (1 + h Σ‖∇w‖)); the lightest node moved by 1 m is a small
+/// fraction of that metre; an FEM vertex counts with its own increment.
+#[test]
+fn increment_size_on_points() {
+    let mut w = world::<2>(SCENE_2D);
+    let setup = w.setup(w.bfemp().unwrap().integrator).unwrap();
+    let (n, n_grid) = (setup.n_dofs, setup.n_grid);
+    let mut obj = setup.objective(&w);
+    let x = setup.x0.clone();
+    let zero = vec![0.0; n];
+    assert_eq!(obj.increment_size(&x, &zero), None, "off by default");
+    obj.point_test = true;
+    assert_eq!(obj.increment_size(&x, &zero), Some(0.0));
+    let d = 1e-3;
+    let all: Vec<f64> = (0..n)
+        .map(|k| if k < 2 * n_grid { d } else { 0.0 })
+        .collect();
+    let size = obj.increment_size(&x, &all).unwrap();
+    // Quadratic B-splines in 2D: Σ_i ‖∇w_i‖ ≤ 3 · 3 · (1.5/h) bounds h Σ ‖∇w‖ by 13.5.
+    assert!(size >= d && size <= 14.5 * d, "{size}");
+    let light = (0..n_grid)
+        .min_by(|&a, &b| setup.mass[2 * a].total_cmp(&setup.mass[2 * b]))
+        .unwrap();
+    let one: Vec<f64> = (0..n)
+        .map(|k| if k == 2 * light { 1.0 } else { 0.0 })
+        .collect();
+    let size = obj.increment_size(&x, &one).unwrap();
+    assert!(
+        size > 0.0 && size < 0.2,
+        "the lightest node's metre counts as {size} m"
+    );
+    let vertex: Vec<f64> = (0..n)
+        .map(|k| if k == 2 * n_grid + 1 { d } else { 0.0 })
+        .collect();
+    assert_eq!(obj.increment_size(&x, &vertex), Some(d));
+}

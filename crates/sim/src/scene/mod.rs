@@ -456,6 +456,12 @@ pub fn validate(s: &SceneSpec) -> Result<(), SimError> {
             format!("{} must be finite and ≥ 0", s.solver.reuse_hessian_below),
         ));
     }
+    if !(s.solver.friction_update_below >= 0.0 && s.solver.friction_update_below.is_finite()) {
+        return Err(invalid(
+            "solver.friction_update_below",
+            format!("{} must be finite and ≥ 0", s.solver.friction_update_below),
+        ));
+    }
     if s.bodies.is_empty() {
         return Err(invalid("bodies", "the scene has no bodies"));
     }

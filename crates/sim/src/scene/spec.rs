@@ -232,6 +232,11 @@ pub struct SolverSpec {
     /// Reuse the last Newton iteration's Hessian after a full step whose increment
     /// ‖p‖∞/Δt was below this (m/s) while the contact set is unchanged (0: never).
     pub reuse_hessian_below: f64,
+    /// Newton iterations re-evaluate the lagged friction operator at their iterate once an
+    /// increment ‖p‖∞/Δt is below this (m/s; 0: only between solves, Algorithm 1).
+    pub friction_update_below: f64,
+    /// What Newton's convergence test measures the increment on.
+    pub newton_test: NewtonTestSpec,
     /// When a step's Newton solve fails (iteration limit, stalled line search), solve the step
     /// again from its start with the other `projection`; the step fails only if both do.
     pub retry_other_projection: bool,
@@ -255,6 +260,18 @@ pub enum OrderingSpec {
     Amd,
     /// Nested dissection (METIS), on the D×D blocks of the unknowns.
     NestedDissection,
+}
+
+/// What Newton's convergence test `‖p‖/Δt < tolerance` measures (`solver.newton_test`).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Deserialize, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum NewtonTestSpec {
+    /// The largest increment of any unknown — grid node or FEM vertex (BFEMP §5).
+    #[default]
+    Nodes,
+    /// The largest increment of what the unknowns move: each particle's position and, times
+    /// the grid spacing, its deformation gradient; each FEM vertex.
+    Points,
 }
 
 /// The Newton direction's linear solver (`solver.linear`).
@@ -292,6 +309,8 @@ impl Default for SolverSpec {
             pcg_max_iterations: 200,
             pcg_rtol_max: None,
             reuse_hessian_below: 0.0,
+            friction_update_below: 0.0,
+            newton_test: NewtonTestSpec::Nodes,
             retry_other_projection: true,
             max_substeps: 1024,
             ordering: OrderingSpec::Auto,

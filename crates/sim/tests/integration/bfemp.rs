@@ -250,14 +250,16 @@ fn mpm_fem_collision_conserves_linear_momentum() {
     }
 }
 
-fn slope(mu: f64, dim: usize) -> String {
+/// A stiff MPM block on a fixed FEM slope of tan θ = 0.2 with friction `mu` (§6.4), with more
+/// `solver` fields in `extra` (empty or starting with a comma).
+fn slope_with(mu: f64, dim: usize, extra: &str) -> String {
     let theta = -(0.2f64).atan().to_degrees();
     if dim == 2 {
         format!(
             r#"{{
   "dimension": 2, "gravity": [0, -9.81],
   "time": {{ "dt": 0.005, "duration": 0.3 }},
-  "solver": {{ "tolerance": 1e-6 }},
+  "solver": {{ "tolerance": 1e-6{extra} }},
   "mpm": {{ "grid_spacing": 0.01 }},
   "bodies": [
     {{ "kind": "mpm", "name": "block",
@@ -275,7 +277,7 @@ fn slope(mu: f64, dim: usize) -> String {
             r#"{{
   "dimension": 3, "gravity": [0, -9.81, 0],
   "time": {{ "dt": 0.005, "duration": 0.15 }},
-  "solver": {{ "tolerance": 1e-6 }},
+  "solver": {{ "tolerance": 1e-6{extra} }},
   "mpm": {{ "grid_spacing": 0.02 }},
   "bodies": [
     {{ "kind": "mpm", "name": "block",
@@ -307,6 +309,10 @@ fn slope_velocity(r: &RunResult, mass: f64) -> Vec<(f64, f64)> {
 }
 
 fn check_slope(dim: usize) {
+    check_slope_with(dim, "");
+}
+
+fn check_slope_with(dim: usize, extra: &str) {
     let g = 9.81;
     let th = 0.2f64.atan();
     let mass = if dim == 2 {
@@ -316,7 +322,7 @@ fn check_slope(dim: usize) {
     };
     // Slides: a = g (sin θ − μ cos θ).
     for mu in [0.0, 0.1] {
-        let r = run_scene(&slope(mu, dim));
+        let r = run_scene(&slope_with(mu, dim, extra));
         let v = slope_velocity(&r, mass);
         let a = g * (th.sin() - mu * th.cos());
         // Fit the acceleration over the second half (after landing).
@@ -330,7 +336,7 @@ fn check_slope(dim: usize) {
         );
     }
     // Sticks: μ ≥ tan θ = 0.2 → (mollified) static friction holds the block.
-    let r = run_scene(&slope(0.25, dim));
+    let r = run_scene(&slope_with(0.25, dim, extra));
     let v = slope_velocity(&r, mass);
     let vmax = v[v.len() / 2..]
         .iter()
@@ -347,6 +353,15 @@ fn slope_2d_sticks_and_slides() {
 #[test]
 fn slope_3d_sticks_and_slides() {
     check_slope(3);
+}
+
+/// The same accelerations with the friction operator updated inside Newton's iterations and
+/// Newton's test measured on the particles (`solver.friction_update_below`, `newton_test`).
+#[test]
+fn slope_sticks_and_slides_with_friction_updated_in_newton_and_the_point_test() {
+    let extra = r#", "friction_update_below": 1e-4, "newton_test": "points""#;
+    check_slope_with(2, extra);
+    check_slope_with(3, extra);
 }
 
 /// A 2D MPM block thrown down and sideways onto a fixed FEM plate with friction μ = 0.5, for

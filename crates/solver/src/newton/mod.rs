@@ -230,13 +230,20 @@ impl Newton {
         if self.free_dofs.is_empty() && problem.at_targets(x) {
             return Ok(());
         }
-        for _ in 0..problem.params.max_iterations {
+        for k in 0..problem.params.max_iterations {
             if self
                 .interrupt
                 .as_ref()
                 .is_some_and(|f| f.load(AtomicOrdering::Relaxed))
             {
                 return Err(Failure::Interrupted);
+            }
+            if k > 0 && obj.update_lagged(x, state.stats.final_residual) {
+                state.stats.lagged_updates += 1;
+                state.e = obj.energy(x);
+                if !state.e.is_finite() {
+                    return Err(Failure::NonFinite("energy after updating lagged terms"));
+                }
             }
             if self.iteration(state, obj, x, problem)? == Progress::Done {
                 return Ok(());
@@ -263,7 +270,7 @@ impl Newton {
             None => self.solve_with_cholesky(state, obj, x, problem, matrix)?,
         };
         let Direction { pmax, gp } = self.direction(problem.fixed)?;
-        state.stats.final_residual = pmax / params.dt;
+        state.stats.final_residual = obj.increment_size(x, &self.p).unwrap_or(pmax) / params.dt;
         let at_targets = problem.at_targets(x);
         let converged =
             at_targets && !solved.loose && state.stats.final_residual < params.tolerance;

@@ -40,6 +40,23 @@ pub trait Objective {
     /// Called at the start of every Newton iteration with the current iterate (e.g. to update
     /// broad-phase candidates for the step ahead). Default: nothing.
     fn begin_iteration(&mut self, _x: &[f64]) {}
+    /// Called before every Newton iteration but a solve's first, with the last iteration's
+    /// increment `‖p‖_∞ / dt` (velocity units, like the tolerance): an objective with lagged
+    /// terms (lagged friction, say) may re-evaluate them at `x` and return `true` if it did —
+    /// the solver then re-evaluates the energy at `x`, and the iteration's direction is that of
+    /// the updated objective, so a solve converges only where the lagged terms are those of its
+    /// own solution. Default: nothing, `false`.
+    fn update_lagged(&mut self, _x: &[f64], _residual: f64) -> bool {
+        false
+    }
+    /// The size of the Newton increment `p` at `x` for the convergence test, in the units of
+    /// `p`: `None` (the default) takes `‖p‖_∞`. An objective whose unknowns are not all
+    /// equally physical — background grid nodes that carry a particle's motion with a weight
+    /// of 1e-13 — may measure what the increment moves instead. The solve stops when it is
+    /// below `tolerance · dt`.
+    fn increment_size(&mut self, _x: &[f64], _p: &[f64]) -> Option<f64> {
+        None
+    }
     /// `E(x)`; `+∞` or NaN for infeasible points (they make the line search backtrack).
     fn energy(&mut self, x: &[f64]) -> f64;
     /// `∇E(x)` into `g` (overwrite). In a Newton iteration it is usually called after the

@@ -36,6 +36,9 @@ pub struct SolveStats {
     /// evaluation cannot resolve so small a change (its summands are far larger than their
     /// sum), the gradient can.
     pub gradient_steps: usize,
+    /// Iterations that began by updating the objective's lagged terms
+    /// ([`crate::Objective::update_lagged`]).
+    pub lagged_updates: usize,
     /// Symbolic analyses (sparsity pattern changes).
     pub symbolic_analyses: usize,
     /// Conjugate-gradient iterations (matrix products), with [`LinearSolver::Pcg`].
@@ -77,6 +80,7 @@ impl std::ops::AddAssign<&SolveStats> for SolveStats {
         self.exact_iterations += s.exact_iterations;
         self.reused_hessians += s.reused_hessians;
         self.exact_rejections += s.exact_rejections;
+        self.lagged_updates += s.lagged_updates;
         self.symbolic_analyses += s.symbolic_analyses;
         self.pcg_iterations += s.pcg_iterations;
         self.pcg_fallbacks += s.pcg_fallbacks;
