@@ -271,7 +271,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             };
             let r = femp::run::run(s, &out, &opts)
                 .with_context(|| format!("running {}", scene.display()))?;
-            let work = if r.summary.method == "augury" {
+            let work = if r.summary.method == femp::scene::Method::Augury {
                 format!("{} augury iterations", r.summary.augury_iterations)
             } else {
                 format!("{} Newton iterations", r.summary.newton_iterations)

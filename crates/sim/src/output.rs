@@ -32,8 +32,8 @@ pub struct Summary {
     pub mpm_bodies: Vec<String>,
     /// 2 or 3.
     pub dimension: usize,
-    /// `bfemp` or `augury`.
-    pub method: String,
+    /// The method that advanced the bodies (`"bfemp"` or `"augury"` in summary.json).
+    pub method: crate::scene::Method,
     /// Augury scenes: background grid spacing (m), explicit stability estimate (s) and number
     /// of boundary particles.
     #[serde(skip_serializing_if = "Option::is_none")]

@@ -144,11 +144,7 @@ pub fn run_with<const D: usize>(
         status: "running".into(),
         particles: world.mpm.as_ref().map_or(0, |m| m.x.len()),
         fem_vertices: world.fem.iter().map(|b| b.x.len()).sum(),
-        method: if world.augury().is_some() {
-            "augury".into()
-        } else {
-            "bfemp".into()
-        },
+        method: world.scene.spec.method,
         augury: world.augury().map(|a| crate::output::AugurySummary {
             grid_spacing: a.grid_spacing,
             stable_dt: a.stable_dt,
@@ -519,7 +515,7 @@ fn penetration_stop<const D: usize>(
 /// The warning for a run whose total energy rose more than [`ENERGY_RISE_WARNING`] above its
 /// initial value although nothing (`driven`) does work on the bodies.
 fn energy_warning(summary: &Summary, driven: bool) -> Option<String> {
-    let who = if summary.method == "augury" {
+    let who = if summary.method == crate::scene::Method::Augury {
         "the explicit step and the augury correction added it (docs/augury.md)"
     } else {
         "the time integrator added it — plain Newmark can with contact (docs/bfemp.md, time \

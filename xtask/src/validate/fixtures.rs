@@ -50,7 +50,7 @@ pub fn run(ctx: &Ctx) -> Result<Outcome> {
                     "—",
                     s.status == "completed",
                 ));
-                if s.method == "bfemp" {
+                if s.method == femp::scene::Method::Bfemp {
                     out.checks.push(Check::count(
                         &format!("`{name}.json`: penetrations, max over steps"),
                         s.max_penetrations,

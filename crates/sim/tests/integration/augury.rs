@@ -88,7 +88,7 @@ fn metrics_show_exact_momentum_through_the_collision() {
     v["bodies"][1]["mesh"]["rectangle"]["max"] = json!([1.5, 1.3]);
     let dir = tempfile::tempdir().unwrap();
     let r = run(parse(&v).unwrap(), dir.path(), &quiet(None)).unwrap();
-    assert_eq!(r.summary.method, "augury");
+    assert_eq!(r.summary.method, femp::scene::Method::Augury);
     let m0 = &r.metrics[0];
     // Scales: Σ m |v| = 2 kg·m/s; positions within 2 m of the origin.
     assert!(
