@@ -117,7 +117,7 @@ pub struct StepObjective<'a, const D: usize> {
 }
 
 /// Where and how often a step's lagged friction operator was evaluated, and the policy that
-/// lets the Newton iterations re-evaluate it (`solver.friction_update`).
+/// lets the Newton iterations re-evaluate it (`solver.friction_update_below`).
 #[derive(Clone, Debug, Default)]
 pub(crate) struct FrictionLag<const D: usize> {
     /// The DOF values the operator was last evaluated at.
