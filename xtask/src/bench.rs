@@ -125,25 +125,23 @@ pub fn main(args: &[String]) -> Result<()> {
         .filter(|c| only.is_empty() || only.iter().any(|o| o == c.name))
     {
         for &ordering in &orderings {
-            // Each variant of the friction update, or the scene's own.
-            let variants: Vec<Option<f64>> = if below.is_empty() {
-                vec![None]
-            } else {
-                below.iter().map(|&b| Some(b)).collect()
-            };
-            let test_variants: Vec<Option<NewtonTestSpec>> = if tests.is_empty() {
-                vec![None]
-            } else {
-                tests.iter().map(|&t| Some(t)).collect()
-            };
-            for &b in &variants {
-                for &t in &test_variants {
+            for b in variants(&below) {
+                for t in variants(&tests) {
                     run_case(&root, case, (ordering, b, t), steps.unwrap_or(case.steps))?;
                 }
             }
         }
     }
     Ok(())
+}
+
+/// Each value asked for, or `None` (the scene's own setting) if none was.
+fn variants<T: Copy>(asked: &[T]) -> Vec<Option<T>> {
+    if asked.is_empty() {
+        vec![None]
+    } else {
+        asked.iter().copied().map(Some).collect()
+    }
 }
 
 fn run_case(

@@ -556,6 +556,13 @@ fn friction_loop_ends_at_its_fixed_point() {
     }
 }
 
+/// The 2D grid node with the least mass.
+fn lightest_node(mass: &[f64], n_grid: usize) -> usize {
+    (0..n_grid)
+        .min_by(|&a, &b| mass[2 * a].total_cmp(&mass[2 * b]))
+        .expect("a grid")
+}
+
 /// The friction fixed point is measured on the points the operator depends on: all grid
 /// nodes moved by δ move every particle by δ (partition of unity); a grid node moved by 1 m
 /// moves no particle by more than its weight, at most the node's mass over the lightest
@@ -586,9 +593,7 @@ fn lag_distance_is_measured_on_particles_and_vertices() {
         "{}",
         obj.lag_distance(&all)
     );
-    let light = (0..n_grid)
-        .min_by(|&a, &b| setup.mass[2 * a].total_cmp(&setup.mass[2 * b]))
-        .unwrap();
+    let light = lightest_node(&setup.mass, n_grid);
     let one = shifted(&|k| if k == 2 * light { 1.0 } else { 0.0 });
     let moved = obj.lag_distance(&one);
     let bound = setup.mass[2 * light] / lightest_particle;
@@ -626,9 +631,7 @@ fn increment_size_on_points() {
     let size = obj.increment_size(&x, &all).unwrap();
     // Quadratic B-splines in 2D: Σ_i ‖∇w_i‖ ≤ 3 · 3 · (1.5/h) bounds h Σ ‖∇w‖ by 13.5.
     assert!(size >= d && size <= 14.5 * d, "{size}");
-    let light = (0..n_grid)
-        .min_by(|&a, &b| setup.mass[2 * a].total_cmp(&setup.mass[2 * b]))
-        .unwrap();
+    let light = lightest_node(&setup.mass, n_grid);
     let one: Vec<f64> = (0..n)
         .map(|k| if k == 2 * light { 1.0 } else { 0.0 })
         .collect();

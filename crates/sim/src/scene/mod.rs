@@ -450,17 +450,16 @@ pub fn validate(s: &SceneSpec) -> Result<(), SimError> {
             ),
         ));
     }
-    if !(s.solver.reuse_hessian_below >= 0.0 && s.solver.reuse_hessian_below.is_finite()) {
-        return Err(invalid(
-            "solver.reuse_hessian_below",
-            format!("{} must be finite and ≥ 0", s.solver.reuse_hessian_below),
-        ));
-    }
-    if !(s.solver.friction_update_below >= 0.0 && s.solver.friction_update_below.is_finite()) {
-        return Err(invalid(
+    for (field, v) in [
+        ("solver.reuse_hessian_below", s.solver.reuse_hessian_below),
+        (
             "solver.friction_update_below",
-            format!("{} must be finite and ≥ 0", s.solver.friction_update_below),
-        ));
+            s.solver.friction_update_below,
+        ),
+    ] {
+        if !(v >= 0.0 && v.is_finite()) {
+            return Err(invalid(field, format!("{v} must be finite and ≥ 0")));
+        }
     }
     if s.bodies.is_empty() {
         return Err(invalid("bodies", "the scene has no bodies"));
