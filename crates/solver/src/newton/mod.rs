@@ -6,7 +6,9 @@
 //! from the objective (CCD, det F), then `α = min(1, 0.9 α_max)` halved until
 //! `E(x + αp) ≤ E(x) + c α gᵀp` (Armijo, `c = 1e-4` by default; non-finite energies count as
 //! failures). The solve stops when `‖p‖_∞ / Δt < ε_d` (BFEMP §5: the Newton increment in
-//! velocity units).
+//! velocity units; or the objective's own size of `p`, `Objective::increment_size`). Before
+//! every iteration but the first an objective may update its lagged terms
+//! (`Objective::update_lagged`; the energy is then re-evaluated).
 //!
 //! Two optional economies for the last iterations, both off by default
 //! ([`NewtonParams::reuse_hessian_below`], [`Forcing::Adaptive`]): once a full step's increment
