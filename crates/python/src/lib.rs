@@ -241,8 +241,8 @@ fn run(
 /// The metrics of a run as its column names and rows of numbers — the values themselves, not
 /// their CSV text (counts exact, reals whole).
 fn table<const D: usize>(forces_of: &[&str], r: &RunResult) -> (Vec<String>, Vec<Vec<f64>>) {
-    let augury = r.metrics.first().is_some_and(|m| m.augury);
-    let names = femp::metrics::column_names::<D>(forces_of, augury);
+    let method = r.summary.method;
+    let names = femp::metrics::column_names::<D>(forces_of, method);
     let rows = r
         .metrics
         .iter()
@@ -302,7 +302,7 @@ impl PyWorld {
         w: &femp::World<D>,
     ) -> PyResult<Bound<'py, PyDict>> {
         let d = PyDict::new(py);
-        let Some(m) = &w.mpm else {
+        let Some(m) = &w.bodies.mpm else {
             d.set_item("x", Array2::<f64>::zeros((0, D)).into_pyarray(py))?;
             d.set_item("body_names", Vec::<String>::new())?;
             return Ok(d);
@@ -334,8 +334,8 @@ impl PyWorld {
         w: &femp::World<D>,
         name: &str,
     ) -> PyResult<Bound<'py, PyDict>> {
-        let Some(b) = w.fem.iter().find(|b| b.name == name) else {
-            let known: Vec<&str> = w.fem.iter().map(|b| b.name.as_str()).collect();
+        let Some(b) = w.bodies.fem.iter().find(|b| b.name == name) else {
+            let known: Vec<&str> = w.bodies.fem.iter().map(|b| b.name.as_str()).collect();
             return Err(PyValueError::new_err(format!(
                 "no FEM body `{name}` (the scene's FEM bodies: {known:?})"
             )));
@@ -372,7 +372,7 @@ impl PyWorld {
         (m.contact_forces, m.friction_forces) =
             w.body_forces(last.map_or(&[][..], |r| &r.pair_forces[..]));
         let d = PyDict::new(py);
-        let columns = femp::metrics::column_names::<D>(&names, m.augury);
+        let columns = femp::metrics::column_names::<D>(&names, m.method);
         for (k, c) in columns.iter().zip(m.cells::<D>()) {
             match c {
                 femp::metrics::Cell::Count(n) => d.set_item(k, n)?,
@@ -435,19 +435,19 @@ impl PyWorld {
     /// Simulated time (s).
     #[getter]
     fn time(&self) -> f64 {
-        with_world!(&self.world, w => w.time)
+        with_world!(&self.world, w => w.clock.time)
     }
 
     /// Steps taken.
     #[getter]
     fn steps(&self) -> usize {
-        with_world!(&self.world, w => w.step)
+        with_world!(&self.world, w => w.clock.step)
     }
 
     /// The time step (s).
     #[getter]
     fn dt(&self) -> f64 {
-        with_world!(&self.world, w => w.dt)
+        with_world!(&self.world, w => w.clock.dt)
     }
 
     /// 2 or 3.
@@ -462,13 +462,13 @@ impl PyWorld {
     /// Names of the FEM bodies.
     #[getter]
     fn fem_bodies(&self) -> Vec<String> {
-        with_world!(&self.world, w => w.fem.iter().map(|b| b.name.clone()).collect())
+        with_world!(&self.world, w => w.bodies.fem.iter().map(|b| b.name.clone()).collect())
     }
 
     /// Names of the MPM bodies (`particles()["body"]` indexes this list).
     #[getter]
     fn mpm_bodies(&self) -> Vec<String> {
-        with_world!(&self.world, w => w.mpm.as_ref().map_or_else(Vec::new, |m| {
+        with_world!(&self.world, w => w.bodies.mpm.as_ref().map_or_else(Vec::new, |m| {
             m.bodies.iter().map(|b| b.name.clone()).collect()
         }))
     }

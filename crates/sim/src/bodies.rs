@@ -12,6 +12,20 @@ use crate::build::inside_simplex;
 use crate::motion::Motion;
 use crate::scene::{BoundaryCondition, BoundaryShape};
 
+/// What a world is made of, whatever the method advancing it.
+pub struct Bodies<const D: usize> {
+    /// The uniform body force per unit mass.
+    pub gravity: SVector<f64, D>,
+    /// MPM state (if any MPM body).
+    pub mpm: Option<Mpm<D>>,
+    /// FEM bodies.
+    pub fem: Vec<FemBody<D>>,
+    /// Contact pairs.
+    pub pairs: Vec<Pair<D>>,
+    /// Level-set boundaries.
+    pub boundaries: Vec<LevelSet<D>>,
+}
+
 /// Which particle–grid transfer MPM uses.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum Transfer {

@@ -13,11 +13,11 @@
 //! * [`run`](run::run) — a whole run with output (`.vtu`/`.pvd` frames, `metrics.csv`,
 //!   `summary.json`) and progress.
 //!
-//! Inside: the bodies both methods share (`bodies`: MPM particles and grid, FEM bodies, contact
-//! pairs, level sets, point-in-body queries) make up a [`World`], whose
-//! [`world::MethodState`] holds each method's own state — BFEMP's integrator and Newton solver
-//! (the step in `step`, its incremental potential in `objective`), or the augury system
-//! (`augury`). Both steps return a [`StepReport`].
+//! Inside: a [`World`] is its bodies ([`world::Bodies`], in `bodies`: MPM particles and grid, FEM
+//! bodies, contact pairs, level sets, point-in-body queries), its [`world::Clock`] and its
+//! [`world::Stepper`] — one per method, chosen when the world is built (`stepper`): BFEMP's
+//! integrator and Newton solvers (the step in `step`, its incremental potential in
+//! `objective`), or the augury system (`augury`). Both steps return a [`StepReport`].
 //!
 //! ```no_run
 //! let scene = femp::scene::load(std::path::Path::new("fixtures/scenes/block_on_plate.json"))?;
@@ -29,6 +29,7 @@
 mod augury;
 mod bodies;
 mod build;
+mod clock;
 mod error;
 pub mod metrics;
 pub mod motion;
@@ -40,6 +41,7 @@ mod report;
 pub mod run;
 pub mod scene;
 mod step;
+mod stepper;
 pub mod sweep;
 pub mod world;
 

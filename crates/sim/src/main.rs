@@ -131,7 +131,7 @@ fn trial_steps<const D: usize>(w: &mut femp::World<D>, n: usize) -> anyhow::Resu
     if n == 0 {
         return Ok(String::new());
     }
-    let total = femp::run::step_count(w.scene.spec.time.duration, w.dt);
+    let total = femp::run::step_count(w.scene.spec.time.duration, w.clock.dt);
     let n = n.min(total);
     let (mut newton, mut contact) = (0usize, 0usize);
     let start = std::time::Instant::now();
@@ -150,7 +150,7 @@ fn trial_steps<const D: usize>(w: &mut femp::World<D>, n: usize) -> anyhow::Resu
         newton as f64 / n as f64,
         femp::run::human_seconds(per * total as f64)
     );
-    if n < total && w.augury().is_none() {
+    if n < total && w.stepper.is_implicit() {
         s += if contact == 0 {
             " — a lower bound: no trial step had contact, and steps in contact cost more \
              (often 10× in 3D MPM)"
@@ -303,27 +303,10 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             let dim = s.spec.dimension;
             let name = s.name.clone();
             fn describe<const D: usize>(w: &femp::World<D>) -> String {
-                let particles = w.mpm.as_ref().map_or(0, |m| m.x.len());
-                let vertices = w.fem.iter().map(|b| b.x.len()).sum::<usize>();
+                let particles = w.bodies.mpm.as_ref().map_or(0, |m| m.x.len());
+                let vertices = w.bodies.fem.iter().map(|b| b.x.len()).sum::<usize>();
                 let mut s = format!("{particles} particles, {vertices} FEM vertices");
-                if let Some(a) = w.augury() {
-                    s += &format!(
-                        "; augury: grid spacing {:.4e} m, {} boundary particles, Δt = {:.3e} s ({:.2} × the explicit stability estimate {:.3e} s)",
-                        a.grid_spacing,
-                        a.system.num_particles(),
-                        w.dt,
-                        w.dt / a.stable_dt,
-                        a.stable_dt
-                    );
-                    // τ, not Δt, sets how strongly the correction acts (docs/augury.md).
-                    if let Some(c) = &a.system.contact {
-                        let tau = c.params().tau;
-                        s += &format!(
-                            ", look-ahead τ = {tau:.3e} s ({:.2} × the estimate)",
-                            tau / a.stable_dt
-                        );
-                    }
-                }
+                s += &w.stepper.describe(w.clock.dt);
                 for warning in w.warnings() {
                     s += &format!("\n  warning: {warning}");
                 }

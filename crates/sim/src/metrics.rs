@@ -5,6 +5,7 @@ use femp_fem::Hyperelastic;
 use nalgebra::{SVector, Vector3};
 
 pub use crate::bodies::Penetration;
+use crate::scene::Method;
 use crate::world::{Points, World, inside_elements};
 
 /// One row of `metrics.csv`.
@@ -58,9 +59,9 @@ pub struct Metrics {
     pub friction_iterations: usize,
     /// Iterations of the augury contact step.
     pub augury_iterations: usize,
-    /// Whether this is an augury scene's row: its solver columns are `augury_iterations` and
+    /// The method of the row's scene: an augury row's solver columns are `augury_iterations` and
     /// `contact_terms` (BFEMP's Newton, friction and linear-solver columns do not apply).
-    pub augury: bool,
+    pub method: Method,
     /// Active contact terms at the end of the step.
     pub contact_terms: usize,
     /// Line-search halvings over the step's Newton iterations.
@@ -224,25 +225,24 @@ const COLUMNS: &[Column] = &[
     col("wall_s", |m| Cell::Real(m.wall_s, 6)),
 ];
 
-/// The columns of a BFEMP row or (`augury`) an augury one, in dimension `D`.
-fn columns<const D: usize>(augury: bool) -> impl Iterator<Item = &'static Column> {
+/// The columns of a row of `method`'s, in dimension `D`.
+fn columns<const D: usize>(method: Method) -> impl Iterator<Item = &'static Column> {
     COLUMNS.iter().filter(move |c| {
         (c.dim == 0 || c.dim == D)
             && match c.rows {
                 Rows::All => true,
-                Rows::Bfemp => !augury,
-                Rows::Augury => augury,
+                Rows::Bfemp => method == Method::Bfemp,
+                Rows::Augury => method == Method::Augury,
             }
     })
 }
 
 const AXES: [&str; 3] = ["x", "y", "z"];
 
-/// The names of the columns of [`Metrics::cells`] for a BFEMP scene or (`augury`) an augury
-/// one, with force columns for the bodies `forces_of` (`force_NAME_x`, … the contact force,
+/// The names of the columns of [`Metrics::cells`] for a scene of `method`, with force columns for the bodies `forces_of` (`force_NAME_x`, … the contact force,
 /// then `friction_NAME_x`, … its friction part).
-pub fn column_names<const D: usize>(forces_of: &[&str], augury: bool) -> Vec<String> {
-    let mut names: Vec<String> = columns::<D>(augury).map(|c| c.name.to_string()).collect();
+pub fn column_names<const D: usize>(forces_of: &[&str], method: Method) -> Vec<String> {
+    let mut names: Vec<String> = columns::<D>(method).map(|c| c.name.to_string()).collect();
     for kind in ["force", "friction"] {
         for name in forces_of {
             for axis in &AXES[..D] {
@@ -254,8 +254,8 @@ pub fn column_names<const D: usize>(forces_of: &[&str], augury: bool) -> Vec<Str
 }
 
 /// CSV header matching [`Metrics::csv_row`]: [`column_names`] joined by commas.
-pub fn csv_header<const D: usize>(forces_of: &[&str], augury: bool) -> String {
-    column_names::<D>(forces_of, augury).join(",")
+pub fn csv_header<const D: usize>(forces_of: &[&str], method: Method) -> String {
+    column_names::<D>(forces_of, method).join(",")
 }
 
 impl Metrics {
@@ -284,7 +284,7 @@ impl Metrics {
     /// The row's values, in the order of [`column_names`] (with one force column triple per
     /// body of `contact_forces`, then of `friction_forces`).
     pub fn cells<const D: usize>(&self) -> Vec<Cell> {
-        let mut cells: Vec<Cell> = columns::<D>(self.augury).map(|c| (c.cell)(self)).collect();
+        let mut cells: Vec<Cell> = columns::<D>(self.method).map(|c| (c.cell)(self)).collect();
         for f in self.contact_forces.iter().chain(&self.friction_forces) {
             cells.extend(f[..D].iter().map(|&v| Cell::Real(v, 12)));
         }
@@ -320,18 +320,18 @@ impl<const D: usize> World<D> {
     /// Measure the current state (without solver data: those come from the step report).
     pub fn measure(&self) -> Metrics {
         let mut m = Metrics {
-            step: self.step,
-            t: self.time,
-            dt: self.dt,
+            step: self.clock.step,
+            t: self.clock.time,
+            dt: self.clock.dt,
             min_distance: f64::INFINITY,
             substeps: 1,
-            augury: self.augury().is_some(),
+            method: self.stepper.method(),
             ..Default::default()
         };
         let mut p = Vector3::zeros();
         let mut l = Vector3::zeros();
-        let g = self.gravity;
-        if let Some(mpm) = &self.mpm {
+        let g = self.bodies.gravity;
+        if let Some(mpm) = &self.bodies.mpm {
             let apic = matches!(mpm.transfer, crate::world::Transfer::Apic);
             let inv_dp = 1.0 / mpm.grid.d_p();
             for q in 0..mpm.x.len() {
@@ -352,7 +352,7 @@ impl<const D: usize> World<D> {
                 }
             }
         }
-        for body in &self.fem {
+        for body in &self.bodies.fem {
             for vtx in 0..body.x.len() {
                 let (mass, v, x) = (body.mass[vtx], body.v[vtx], body.x[vtx]);
                 m.kinetic_energy += 0.5 * mass * v.norm_squared();
@@ -366,12 +366,11 @@ impl<const D: usize> World<D> {
                 m.elastic_energy += body.elastic.energy(&body.x).unwrap_or(f64::INFINITY);
             }
         }
-        if let Some(aug) = self.augury() {
-            l += aug.spin();
-            let (n, d, deepest) = aug.contact_metrics(&self.fem);
-            m.penetrations = n;
-            m.min_distance = d;
-            m.deepest = deepest;
+        if let Some(own) = self.stepper.own_contact(&self.bodies) {
+            l += own.spin;
+            m.penetrations = own.penetrations;
+            m.min_distance = own.min_distance;
+            m.deepest = own.deepest;
         }
         m.penetrations += self.fem_crossings();
         m.penetration_depth = m.deepest.as_ref().map_or(0.0, |d| d.depth);
@@ -379,8 +378,8 @@ impl<const D: usize> World<D> {
         m.momentum = [p[0], p[1], p[2]];
         m.angular_momentum = [l[0], l[1], l[2]];
         // Barrier energy, minimum distance and penetrations, independent of the solver.
-        for pair in &self.pairs {
-            let target = &self.fem[pair.facets_of];
+        for pair in &self.bodies.pairs {
+            let target = &self.bodies.fem[pair.facets_of];
             let (pts, w) = self.pair_points(pair);
             let inside = inside_elements(&pts, &target.mesh, &target.x);
             m.penetrations += inside.len();
@@ -388,7 +387,7 @@ impl<const D: usize> World<D> {
                 let (name, index): (&str, Box<dyn Fn(usize) -> usize>) = match &pair.points {
                     Points::Mpm { range } => (&pair.names.0, Box::new(move |k| range.0 + k)),
                     Points::Fem { body } => {
-                        let vs = self.fem[*body].boundary.vertices();
+                        let vs = self.bodies.fem[*body].boundary.vertices();
                         (&pair.names.0, Box::new(move |k| vs[k]))
                     }
                 };
@@ -452,22 +451,11 @@ impl<const D: usize> World<D> {
     /// every two FEM bodies that can touch (BFEMP: the contact pairs; augury: bodies whose
     /// bounding boxes overlap).
     pub fn fem_crossings(&self) -> usize {
-        let pairs: Vec<(usize, usize)> = if self.augury().is_some() {
-            let xs: Vec<&[SVector<f64, D>]> = self.fem.iter().map(|b| &b.x[..]).collect();
-            crate::overlap::box_pairs(&xs)
-        } else {
-            self.pairs
-                .iter()
-                .filter_map(|p| match p.points {
-                    Points::Fem { body } if body < p.facets_of => Some((body, p.facets_of)),
-                    _ => None,
-                })
-                .collect()
-        };
+        let pairs = self.stepper.fem_pairs(&self.bodies);
         pairs
             .into_iter()
             .map(|(a, b)| {
-                let (a, b) = (&self.fem[a], &self.fem[b]);
+                let (a, b) = (&self.bodies.fem[a], &self.bodies.fem[b]);
                 crate::overlap::crossings(a, &a.x, b, &b.x, crate::overlap::Meeting::Crossing).0
             })
             .sum()
@@ -478,14 +466,14 @@ impl<const D: usize> World<D> {
     fn pair_points(&self, pair: &crate::world::Pair<D>) -> (Vec<SVector<f64, D>>, Vec<f64>) {
         match &pair.points {
             Points::Mpm { range } => {
-                let mpm = self.mpm.as_ref().expect("MPM pair");
+                let mpm = self.bodies.mpm.as_ref().expect("MPM pair");
                 (
                     mpm.x[range.0..range.1].to_vec(),
                     mpm.weight[range.0..range.1].to_vec(),
                 )
             }
             Points::Fem { body } => {
-                let b = &self.fem[*body];
+                let b = &self.bodies.fem[*body];
                 (
                     b.boundary.vertices().iter().map(|&v| b.x[v]).collect(),
                     b.vertex_weight.clone(),
@@ -498,10 +486,10 @@ impl<const D: usize> World<D> {
     /// prescribed plate): the gradient of the pair's barrier energy with respect to its points,
     /// summed. Friction forces are not included.
     pub fn contact_forces(&self) -> Vec<PairForce<D>> {
-        let mut out = Vec::with_capacity(self.pairs.len());
+        let mut out = Vec::with_capacity(self.bodies.pairs.len());
         let mut derivs = Vec::new();
-        for pair in &self.pairs {
-            let target = &self.fem[pair.facets_of];
+        for pair in &self.bodies.pairs {
+            let target = &self.bodies.fem[pair.facets_of];
             let (pts, w) = self.pair_points(pair);
             let mut c = femp_contact::broad_phase::Candidates::default();
             femp_contact::broad_phase::candidates_within(
@@ -569,7 +557,11 @@ mod tests {
             newton_iterations: 12,
             friction_iterations: 5,
             augury_iterations: 7,
-            augury,
+            method: if augury {
+                Method::Augury
+            } else {
+                Method::Bfemp
+            },
             contact_terms: 99,
             backtracks: 1,
             ccd_limited: 6,
@@ -593,12 +585,17 @@ mod tests {
     fn check<const D: usize>(augury: bool) {
         let m = row(augury);
         let bodies: &[&str] = if augury { &[] } else { &["a", "b"] };
-        let names = column_names::<D>(bodies, augury);
+        let method = if augury {
+            Method::Augury
+        } else {
+            Method::Bfemp
+        };
+        let names = column_names::<D>(bodies, method);
         let cells = m.cells::<D>();
         assert_eq!(names.len(), cells.len(), "{D}D augury={augury}");
         let unique: std::collections::HashSet<_> = names.iter().collect();
         assert_eq!(unique.len(), names.len(), "column names repeat");
-        assert_eq!(csv_header::<D>(bodies, augury), names.join(","));
+        assert_eq!(csv_header::<D>(bodies, method), names.join(","));
         // The CSV row is the cells at their precision, column for column.
         let csv = m.csv_row::<D>();
         let text: Vec<&str> = csv.split(',').collect();

@@ -262,10 +262,11 @@ fn refuse_links<const D: usize>(dir: &Path, world: &World<D>) -> Result<(), SimE
             .to_string(),
     );
     let bodies = world
+        .bodies
         .mpm
         .iter()
         .map(|_| "particles".to_string())
-        .chain(world.fem.iter().map(|b| b.name.clone()));
+        .chain(world.bodies.fem.iter().map(|b| b.name.clone()));
     for b in bodies {
         names.push(format!("{b}.pvd"));
         names.push(format!("{b}.pvd.tmp"));
@@ -395,17 +396,17 @@ impl Output {
         let mut metrics = File::create(&mpath).map_err(io(&mpath))?;
         let header = format!(
             "{}\n",
-            csv_header::<D>(&world.force_bodies(), world.augury().is_some())
+            csv_header::<D>(&world.force_bodies(), world.stepper.method())
         );
         metrics.write_all(header.as_bytes()).map_err(io(&mpath))?;
         let mut pvds = Vec::new();
-        if world.mpm.is_some() {
+        if world.bodies.mpm.is_some() {
             pvds.push((
                 "particles".to_string(),
                 Pvd::new(&dir.join("particles.pvd")),
             ));
         }
-        for b in &world.fem {
+        for b in &world.bodies.fem {
             // Names are validated as safe file names (scene::validate): the file stays in `dir`.
             pvds.push((
                 b.name.clone(),
@@ -470,7 +471,7 @@ impl Output {
                 message: e.to_string(),
             },
         };
-        if let Some(m) = &world.mpm {
+        if let Some(m) = &world.bodies.mpm {
             let path = self
                 .dir
                 .join("frames")
@@ -495,11 +496,11 @@ impl Output {
                 .map_err(fem_err)?;
             self.pvds[part]
                 .1
-                .add(world.time, &path, 0)
+                .add(world.clock.time, &path, 0)
                 .map_err(fem_err)?;
             part += 1;
         }
-        for b in &world.fem {
+        for b in &world.bodies.fem {
             let path = self
                 .dir
                 .join("frames")
@@ -517,7 +518,7 @@ impl Output {
                 .map_err(fem_err)?;
             self.pvds[part]
                 .1
-                .add(world.time, &path, 0)
+                .add(world.clock.time, &path, 0)
                 .map_err(fem_err)?;
             part += 1;
         }

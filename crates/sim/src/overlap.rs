@@ -14,12 +14,19 @@
 //!
 //! Bodies are first paired by their bounding boxes (sorted along one axis and swept), so many
 //! bodies far apart cost about `n log n`.
+//!
+//! Also the errors for bodies that start overlapping that both methods share: points inside
+//! another body (`points_inside`), FEM bodies that cross or coincide (`fem_pair_overlap`), and
+//! augury's check of every FEM body against every other (`check_augury_overlaps`, touching
+//! allowed).
 
 use femp_contact::broad_phase::{self, Candidates};
 use femp_contact::intersect::{self, Intersection};
 use nalgebra::{SVector, Vector2, Vector3};
+use rayon::prelude::*;
 
 use crate::bodies::{FemBody, inside_elements, point_facet_distance};
+use crate::error::SimError;
 
 /// The boundary edges of a body's boundary facets (2D: the facets; 3D: each edge once).
 pub(crate) fn boundary_edges<const D: usize>(facets: &[[u32; 3]]) -> Vec<[u32; 2]> {
@@ -202,4 +209,143 @@ pub(crate) fn bounding_box<const D: usize>(
         x.iter()
             .fold((*first, *first), |(l, h), v| (l.inf(v), h.sup(v))),
     )
+}
+
+/// The overlap error for `points` (of body `names.0`) inside or on the elements of `target`
+/// (body `names.1`), naming the deepest; `None` if there is none. With `touching_allowed`,
+/// points on the boundary (distance 0, to round-off) are not an overlap: the augury method
+/// starts from bodies in contact.
+pub(crate) fn points_inside<const D: usize>(
+    points: &[SVector<f64, D>],
+    target: &FemBody<D>,
+    names: &(String, String),
+    touching_allowed: bool,
+) -> Option<SimError> {
+    let mut inside = inside_elements(points, &target.mesh, &target.x);
+    if inside.is_empty() {
+        return None;
+    }
+    inside.sort_unstable();
+    inside.dedup_by_key(|(k, _)| *k);
+    let (lo, hi) = target.mesh.bounding_box();
+    // Round-off of placed meshes: a point this close to the boundary is on it.
+    let on_boundary = if touching_allowed { 1e-9 } else { 1e-12 } * (hi - lo).norm();
+    let mut deep: Vec<(usize, usize, f64)> = inside
+        .par_iter()
+        .map(|&(k, e)| {
+            let d = target
+                .facets
+                .iter()
+                .map(|f| point_facet_distance(&points[k], f, &target.x))
+                .fold(f64::INFINITY, f64::min);
+            (k, e, d)
+        })
+        .collect();
+    if touching_allowed {
+        deep.retain(|&(_, _, d)| d > on_boundary);
+    }
+    // The worst offender: the point deepest inside (farthest from the boundary).
+    let &(k, e, depth) = deep.iter().reduce(|a, b| if b.2 > a.2 { b } else { a })?;
+    let where_ = if depth <= on_boundary {
+        "lies on the boundary (distance 0)".to_string()
+    } else {
+        format!("is {depth:.3e} m inside")
+    };
+    Some(SimError::Overlap {
+        a: names.0.clone(),
+        b: names.1.clone(),
+        detail: format!(
+            "{} point(s) of `{}` lie inside{} `{}`; the deepest, point {k} at {:?}, {where_} (element {e})",
+            deep.len(),
+            names.0,
+            if touching_allowed { "" } else { " or on" },
+            names.1,
+            points[k].as_slice(),
+        ),
+    })
+}
+
+/// Augury scenes: no FEM body may start with a boundary vertex inside another, its boundary
+/// crossing another's, or its elements inside another (coincident bodies); touching is allowed.
+/// Only bodies whose bounding boxes overlap are compared (sorted and swept: about `n log n` for
+/// many bodies apart); `interrupted` is asked between pairs.
+pub(crate) fn check_augury_overlaps<const D: usize>(
+    fem: &[FemBody<D>],
+    interrupted: impl Fn() -> bool,
+) -> Result<(), SimError> {
+    let xs: Vec<&[SVector<f64, D>]> = fem.iter().map(|b| &b.x[..]).collect();
+    for (i, j) in box_pairs(&xs) {
+        // Two obstacles that never move never meet: they may overlap (a wall into a floor).
+        if fem[i].fully_prescribed && fem[j].fully_prescribed {
+            continue;
+        }
+        if interrupted() {
+            return Err(SimError::Interrupted { step: 0, time: 0.0 });
+        }
+        for (a, b) in [(&fem[i], &fem[j]), (&fem[j], &fem[i])] {
+            let points: Vec<SVector<f64, D>> =
+                a.boundary.vertices().iter().map(|&v| a.x[v]).collect();
+            if let Some(e) = points_inside(&points, b, &(a.name.clone(), b.name.clone()), true) {
+                return Err(e);
+            }
+        }
+        fem_pair_overlap(&fem[i], &fem[j], true)?;
+    }
+    Ok(())
+}
+
+/// The overlap error for FEM bodies `a` and `b` whose boundaries cross (or, unless
+/// `touching_allowed`, touch) or whose elements lie inside each other (coincident bodies).
+pub(crate) fn fem_pair_overlap<const D: usize>(
+    a: &FemBody<D>,
+    b: &FemBody<D>,
+    touching_allowed: bool,
+) -> Result<(), SimError> {
+    let err = |detail: String| SimError::Overlap {
+        a: a.name.clone(),
+        b: b.name.clone(),
+        detail,
+    };
+    // Touching allowed (augury): a crossing within the round-off of placed meshes is a touch,
+    // with the tolerance `points_inside` uses for a point on the boundary.
+    let meeting = if touching_allowed {
+        let scale = |x: &FemBody<D>| {
+            let (lo, hi) = x.mesh.bounding_box();
+            (hi - lo).norm()
+        };
+        Meeting::DeeperThan(1e-9 * scale(a).min(scale(b)))
+    } else {
+        Meeting::OrTouching
+    };
+    let (n, first) = crossings(a, &a.x, b, &b.x, meeting);
+    if let Some(c) = first {
+        return Err(err(format!(
+            "their boundaries {} ({n} edge–facet pair(s)); the first near {:?} (boundary edge {} \
+             against boundary facet {})",
+            if touching_allowed {
+                "cross"
+            } else {
+                "cross or touch"
+            },
+            c.near.as_slice(),
+            c.edge,
+            c.facet
+        )));
+    }
+    for (x, y) in [(a, b), (b, a)] {
+        if let Some((k, at)) = element_inside(x, &x.x, y, &y.x) {
+            return Err(SimError::Overlap {
+                a: x.name.clone(),
+                b: y.name.clone(),
+                detail: format!(
+                    "element {k} of `{}` (centroid {:?}) lies inside `{}`: the bodies overlap \
+                     (or coincide) without a vertex inside the other",
+                    x.name,
+                    at.as_slice(),
+                    y.name
+                ),
+            });
+        }
+    }
+    Ok(())
 }

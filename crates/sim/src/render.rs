@@ -218,10 +218,10 @@ impl Pictures {
             source,
         })?;
         let mut pts: Vec<Vector3<f64>> = Vec::new();
-        if let Some(m) = &world.mpm {
+        if let Some(m) = &world.bodies.mpm {
             pts.extend(m.x.iter().map(lift));
         }
-        for b in &world.fem {
+        for b in &world.bodies.fem {
             pts.extend(b.x.iter().map(lift));
         }
         let up = match opts.up {
@@ -233,7 +233,7 @@ impl Pictures {
                 ));
             }
             None => {
-                let g = &world.gravity;
+                let g = &world.bodies.gravity;
                 if g.norm() > 0.0 { g.iamax() } else { 1 }
             }
         };
@@ -261,7 +261,7 @@ impl Pictures {
 
     /// Draw whatever is due at the world's current time (call at t = 0 and after every step).
     pub fn update<const D: usize>(&mut self, world: &World<D>) -> Result<(), SimError> {
-        let (t, duration) = (world.time, self.duration);
+        let (t, duration) = (world.clock.time, self.duration);
         let due = move |k: usize, n: usize| -> bool {
             n > 0 && k < n && t + 1e-12 >= duration * k as f64 / (n.max(2) - 1) as f64
         };
@@ -310,7 +310,7 @@ impl Pictures {
         self.stress_max = self.stress_max.max(scene.stress_max);
         {
             let area = BitMapBackend::with_buffer(&mut buf, (w, h)).into_drawing_area();
-            scene.paint(&area, &self.view, self.stress_max, world.time)?;
+            scene.paint(&area, &self.view, self.stress_max, world.clock.time)?;
             area.present().map_err(draw_err)?;
         }
         Ok(buf)
@@ -341,7 +341,7 @@ impl Pictures {
         if self.opts.key_frames > 0 && self.keys_done < self.opts.key_frames {
             let scene = Snapshot::of(world, &self.view);
             self.stress_max = self.stress_max.max(scene.stress_max);
-            self.write_key(&scene, world.time)?;
+            self.write_key(&scene, world.clock.time)?;
         }
         if let Some(area) = self.gif.take() {
             area.present().map_err(draw_err)?;
@@ -386,7 +386,7 @@ impl Snapshot {
         let mut prims = Vec::new();
         let mut stress_max = 0.0f64;
         let mut dot_radius = 1;
-        if let Some(m) = &world.mpm {
+        if let Some(m) = &world.bodies.mpm {
             let n = m.x.len().max(1);
             let mean_vol = m.volume.iter().sum::<f64>() / n as f64;
             let spacing = mean_vol.powf(1.0 / D as f64);
@@ -408,7 +408,7 @@ impl Snapshot {
             }
         }
         let light = Vector3::new(0.3, 1.0, 0.6).normalize();
-        for b in &world.fem {
+        for b in &world.bodies.fem {
             let grey = b.fully_prescribed;
             let vm = if grey {
                 Vec::new()
@@ -469,7 +469,7 @@ impl Snapshot {
         prims.sort_by(|a, b| a.0.total_cmp(&b.0));
         let mut solid = Vec::new();
         let block = 2;
-        if D == 2 && !world.boundaries.is_empty() {
+        if D == 2 && !world.bodies.boundaries.is_empty() {
             let (w, h) = (view.size.0 as i32, view.size.1 as i32);
             let mut py = view.header as i32;
             while py < h {
@@ -480,9 +480,10 @@ impl Snapshot {
                     q[0] = x;
                     q[1] = y;
                     if world
+                        .bodies
                         .boundaries
                         .iter()
-                        .any(|ls| ls.eval(&q, world.time).0 < 0.0)
+                        .any(|ls| ls.eval(&q, world.clock.time).0 < 0.0)
                     {
                         solid.push((px, py));
                     }

@@ -120,7 +120,7 @@ pub fn run_with<const D: usize>(
             crate::output::describe_outputs(out_dir, out.removed())
         ));
     }
-    let total_steps = step_count(world.scene.spec.time.duration, world.dt);
+    let total_steps = step_count(world.scene.spec.time.duration, world.clock.dt);
     let total_steps = opts.max_steps.map_or(total_steps, |m| m.min(total_steps));
     let scene_copy = match &world.scene.source {
         Some(text) => {
@@ -136,20 +136,24 @@ pub fn run_with<const D: usize>(
         command: opts.command.clone(),
         scene_copy,
         mpm_bodies: world
+            .bodies
             .mpm
             .as_ref()
             .map(|m| m.bodies.iter().map(|b| b.name.clone()).collect())
             .unwrap_or_default(),
         dimension: D,
         status: "running".into(),
-        particles: world.mpm.as_ref().map_or(0, |m| m.x.len()),
-        fem_vertices: world.fem.iter().map(|b| b.x.len()).sum(),
+        particles: world.bodies.mpm.as_ref().map_or(0, |m| m.x.len()),
+        fem_vertices: world.bodies.fem.iter().map(|b| b.x.len()).sum(),
         method: world.scene.spec.method,
-        augury: world.augury().map(|a| crate::output::AugurySummary {
-            grid_spacing: a.grid_spacing,
-            stable_dt: a.stable_dt,
-            boundary_particles: a.system.num_particles(),
-        }),
+        augury: world
+            .stepper
+            .augury()
+            .map(|a| crate::output::AugurySummary {
+                grid_spacing: a.grid_spacing,
+                stable_dt: a.stable_dt,
+                boundary_particles: a.system.num_particles(),
+            }),
         ..Default::default()
     };
     for w in world.warnings() {
@@ -302,7 +306,12 @@ fn drive<const D: usize>(
     inspect: &mut impl FnMut(&World<D>, &Metrics),
 ) -> Result<(), SimError> {
     let name = summary.scene.clone();
-    let frame_dt = world.scene.spec.time.frame_interval.unwrap_or(world.dt);
+    let frame_dt = world
+        .scene
+        .spec
+        .time
+        .frame_interval
+        .unwrap_or(world.clock.dt);
     let mut m0 = world.measure();
     let energy0 = total_energy(&m0);
     // The scale a rise is measured against, independent of the gravity potential's origin
@@ -325,7 +334,7 @@ fn drive<const D: usize>(
     }
     if let Some(p) = &opts.pictures {
         let dir = out.dir().join("pictures");
-        let mut pics = Pictures::new(world, &dir, total_steps as f64 * world.dt, p.clone())?;
+        let mut pics = Pictures::new(world, &dir, total_steps as f64 * world.clock.dt, p.clone())?;
         pics.update(world)?;
         *pictures = Some(pics);
     }
@@ -346,8 +355,8 @@ fn drive<const D: usize>(
         let t0 = Instant::now();
         let step = if world.interrupted() {
             Err(SimError::Interrupted {
-                step: world.step,
-                time: world.time,
+                step: world.clock.step,
+                time: world.clock.time,
             })
         } else {
             world.step()
@@ -376,7 +385,7 @@ fn drive<const D: usize>(
             let line = format!(
                 "step {}: a point's straight path passed through a body at Δt = {:e}; solved \
                  again in {} substeps",
-                world.step, world.dt, report.substeps
+                world.clock.step, world.clock.dt, report.substeps
             );
             if let Some(b) = &bar {
                 b.println(format!("[{name}] {line}"));
@@ -385,7 +394,7 @@ fn drive<const D: usize>(
             }
         }
         let clock = Instant::now();
-        let measured = sampled(world.step, total_steps, opts.metrics_every);
+        let measured = sampled(world.clock.step, total_steps, opts.metrics_every);
         let mut m = if measured {
             world.measure()
         } else {
@@ -400,14 +409,14 @@ fn drive<const D: usize>(
             out.metrics_row::<D>(&m)?;
             energy_scale = energy_scale.max((m.gravity_energy - gravity0).abs());
             if total_energy(&m) > summary.peak_energy {
-                summary.energy_rise_step = world.step;
+                summary.energy_rise_step = world.clock.step;
                 summary.peak_energy = total_energy(&m);
             }
             summary.energy_rise = ((summary.peak_energy - energy0) / energy_scale).max(0.0);
         }
-        summary.steps = world.step;
-        summary.simulated_time = world.time;
-        if !opts.no_frames && world.time + 1e-12 >= next_frame {
+        summary.steps = world.clock.step;
+        summary.simulated_time = world.clock.time;
+        if !opts.no_frames && world.clock.time + 1e-12 >= next_frame {
             out.frame(world)?;
             next_frame += frame_dt;
         }
@@ -426,25 +435,25 @@ fn drive<const D: usize>(
         if measured {
             inspect(world, &m);
         }
-        let msg = if world.augury().is_some() {
-            format!("t = {:.4} s", world.time)
-        } else {
+        let msg = if world.stepper.is_implicit() {
             format!(
                 "t = {:.4} s, Newton {}",
-                world.time, report.newton_iterations
+                world.clock.time, report.newton_iterations
             )
+        } else {
+            format!("t = {:.4} s", world.clock.time)
         };
         if let Some(b) = &bar {
             b.set_message(msg);
             b.inc(1);
         } else if opts.progress
-            && (last_line.elapsed().as_secs_f64() > 10.0 || world.step == total_steps)
+            && (last_line.elapsed().as_secs_f64() > 10.0 || world.clock.step == total_steps)
         {
             let elapsed = start.elapsed().as_secs_f64();
-            let left = eta(elapsed, world.step, total_steps);
+            let left = eta(elapsed, world.clock.step, total_steps);
             note(format_args!(
                 "[{name}] step {}/{total_steps}, {msg}, {elapsed:.1} s{left}",
-                world.step,
+                world.clock.step,
             ));
             last_line = Instant::now();
         }
@@ -479,18 +488,10 @@ fn penetration_stop<const D: usize>(
     m: &Metrics,
     report: &StepReport,
 ) -> Option<SimError> {
-    world.augury()?;
-    let limit = world
-        .scene
-        .spec
-        .augury
-        .as_ref()
-        .map_or(crate::scene::AugurySpec::default().penetration_limit, |a| {
-            a.penetration_limit
-        })?;
+    let limit = world.stepper.penetration_limit(&world.scene)?;
     let fail = |message: String| SimError::StepFailed {
-        step: world.step.saturating_sub(1),
-        time: world.time - world.dt,
+        step: world.clock.step.saturating_sub(1),
+        time: world.clock.time - world.clock.dt,
         message,
     };
     if report.swept.tunnelled > 0 {

@@ -1,21 +1,54 @@
-//! One BFEMP time step (Algorithm 1): particle-to-grid, the lagged-friction loop around the
-//! incremental-potential minimisation (Algorithm 2, [`femp_solver::Newton`]), the velocity update,
-//! grid-to-particle and advection.
+//! One BFEMP time step (Algorithm 1), `Bfemp::step` over a world without its stepper (`Parts`):
+//! particle-to-grid, the lagged-friction loop around the incremental-potential minimisation
+//! (Algorithm 2, [`femp_solver::Newton`]), the velocity update, grid-to-particle and advection;
+//! a step whose points' straight paths pass through a body solved again in substeps.
 
 use femp_kernels::transfer;
 use femp_solver::{
-    Forcing, HessianStrategy, Integrator, LinearSolver, NewtonParams, Ordering, Threads,
+    Forcing, HessianStrategy, Integrator, LinearSolver, Newton, NewtonParams, Ordering, Threads,
 };
 use nalgebra::{SMatrix, SVector};
 
+use crate::bodies::{Bodies, Transfer};
+use crate::clock::Clock;
 use crate::error::SimError;
 use crate::objective::{Dofs, Inertia, Penalty, StepObjective};
 use crate::report::StepReport;
-use crate::scene::BoundaryCondition;
 use crate::scene::spec::{LinearSpec, NewtonTestSpec, OrderingSpec, ProjectionSpec};
-use crate::world::{MethodState, Transfer, World};
+use crate::scene::{BoundaryCondition, IntegratorSpec, Scene};
 
-/// A BFEMP world's state at the start of a step ([`World::save`]): the positions (also the
+/// The state of the implicit (BFEMP) method.
+pub struct Bfemp {
+    /// The time integrator of the incremental potential.
+    pub integrator: Integrator,
+    /// Contact-stabilised Newmark: the predictor is projected onto what the barrier admits
+    /// before the step, and the acceleration carried to the next step excludes contact.
+    pub contact_stabilized: bool,
+    /// The Newton solver (kept across steps: symbolic factorisations and buffers are reused).
+    pub newton: Newton,
+    /// The predictor projection's Newton solver (contact-stabilised Newmark; its own Hessian
+    /// pattern, so kept apart from the step's).
+    pub projection: Newton,
+}
+
+impl Bfemp {
+    /// The implicit method with the scene's integrator and fresh solvers.
+    pub(crate) fn new(integrator: IntegratorSpec) -> Self {
+        Self {
+            integrator: match integrator {
+                IntegratorSpec::BackwardEuler => Integrator::BackwardEuler,
+                IntegratorSpec::Newmark | IntegratorSpec::ContactStabilizedNewmark => {
+                    Integrator::Newmark
+                }
+            },
+            contact_stabilized: integrator == IntegratorSpec::ContactStabilizedNewmark,
+            newton: Newton::new(),
+            projection: Newton::new(),
+        }
+    }
+}
+
+/// A BFEMP world's state at the start of a step (`Parts::save`): the positions (also the
 /// start of the step's straight paths) and what else a step changes, to solve it again in
 /// substeps.
 pub(crate) struct Saved<const D: usize> {
@@ -37,7 +70,7 @@ struct SavedMpm<const D: usize> {
     contact_force: Vec<SVector<f64, D>>,
 }
 
-/// The unknowns of one step and what they start from (see [`World::setup`]).
+/// The unknowns of one step and what they start from (see `Parts::setup`).
 pub(crate) struct StepSetup<const D: usize> {
     pub(crate) n_grid: usize,
     pub(crate) grid_v: Vec<SVector<f64, D>>,
@@ -55,72 +88,58 @@ pub(crate) struct StepSetup<const D: usize> {
     pub(crate) transfers_s: f64,
 }
 
-impl<const D: usize> World<D> {
-    /// Advance by one time step.
-    ///
-    /// A BFEMP step is checked along the straight paths of its points ([`crate::sweep`]): if a
-    /// point's path from where it was to where the step put it passes through a body (in
-    /// through one facet, out through one facing away from it), the step is solved again from
-    /// its start as 2, 4, 8, … substeps of Δt/n (each checked the same way), up to
-    /// `solver.max_substeps`; if even that does not keep every path out, the step fails with
-    /// the deepest path named and the world back at the step's start. The report says how many
-    /// substeps the step took and counts the work of every attempt.
-    pub fn step(&mut self) -> Result<StepReport, SimError> {
-        let integrator = match &mut self.method {
-            MethodState::Bfemp(b) => b.integrator,
-            MethodState::Augury(aug) => {
-                // A bounded amount of explicit work: the interrupt flag is checked before it.
-                if self
-                    .interrupt
-                    .as_ref()
-                    .is_some_and(|f| f.load(std::sync::atomic::Ordering::Relaxed))
-                {
-                    return Err(SimError::Interrupted {
-                        step: self.step,
-                        time: self.time,
-                    });
-                }
-                // (Fields, not `self.positions()`: `aug` borrows the method state.)
-                let before = positions_of(self.mpm.as_ref(), &self.fem);
-                let mut report = aug.step(&mut self.fem, self.step, self.time)?;
-                self.time = aug.system.time;
-                self.step += 1;
-                report.swept = self.sweep(&before);
-                return Ok(report);
-            }
-        };
-        // BFEMP: the Newton solver checks the interrupt flag before every iteration.
-        let saved = self.save();
-        let mut report = self.step_bfemp(integrator)?;
-        report.swept = self.sweep(&saved.at);
+/// A world without its stepper: what a step advances.
+pub(crate) struct Parts<'a, const D: usize> {
+    /// The scene (the solver's settings).
+    pub(crate) scene: &'a Scene,
+    /// The bodies.
+    pub(crate) bodies: &'a mut Bodies<D>,
+    /// The clock.
+    pub(crate) clock: &'a mut Clock,
+}
+
+impl Bfemp {
+    /// One BFEMP step, checked along the straight paths of its points ([`crate::sweep`]): if a
+    /// point's path from where it was to where the step put it passes through a body, the step
+    /// is solved again from its start in substeps ([`crate::World::step`] says how).
+    pub(crate) fn step<const D: usize>(
+        &mut self,
+        mut w: Parts<'_, D>,
+    ) -> Result<StepReport, SimError> {
+        // The Newton solver checks the interrupt flag before every iteration.
+        let integrator = self.integrator;
+        let saved = w.save();
+        let mut report = self.solve(&mut w, integrator)?;
+        report.swept = w.bodies.sweep_pairs(&saved.at);
         if report.swept.tunnelled == 0 {
             return Ok(report);
         }
-        self.substepped(integrator, &saved, report)
+        self.substepped(&mut w, integrator, &saved, report)
     }
 
     /// The step from `saved` again in substeps, after `first` (the whole step's attempt) let a
     /// point pass through a body.
-    fn substepped(
+    fn substepped<const D: usize>(
         &mut self,
+        w: &mut Parts<'_, D>,
         integrator: Integrator,
         saved: &Saved<D>,
         first: StepReport,
     ) -> Result<StepReport, SimError> {
-        let (dt, max) = (self.dt, self.scene.spec.solver.max_substeps);
+        let (dt, max) = (w.clock.dt, w.scene.spec.solver.max_substeps);
         let mut worst = first.swept.clone();
         let mut work = StepReport::default();
         work.add_work(&first);
         let mut n = 2;
         while n <= max {
-            self.restore(saved);
-            self.set_dt(dt / n as f64);
-            let attempt = self.substeps(integrator, n, &mut work);
-            self.set_dt(dt);
+            w.restore(saved);
+            w.set_dt(dt / n as f64);
+            let attempt = self.substeps(w, integrator, n, &mut work);
+            w.set_dt(dt);
             match attempt? {
                 Ok(mut report) => {
-                    self.time = saved.time + dt;
-                    self.step = saved.step + 1;
+                    w.clock.time = saved.time + dt;
+                    w.clock.step = saved.step + 1;
                     let last = std::mem::take(&mut report);
                     report = work;
                     report.take_state(last);
@@ -131,7 +150,7 @@ impl<const D: usize> World<D> {
             }
             n = if n == max { max + 1 } else { (2 * n).min(max) };
         }
-        self.restore(saved);
+        w.restore(saved);
         Err(SimError::StepFailed {
             step: saved.step,
             time: saved.time,
@@ -151,8 +170,9 @@ impl<const D: usize> World<D> {
     /// `n` steps of the current Δt, each checked along its straight paths: the last one's report
     /// with every one's work added into `work`, or the straight-path report of the first that
     /// let a point through.
-    fn substeps(
+    fn substeps<const D: usize>(
         &mut self,
+        w: &mut Parts<'_, D>,
         integrator: Integrator,
         n: usize,
         work: &mut StepReport,
@@ -160,9 +180,9 @@ impl<const D: usize> World<D> {
         let mut last = StepReport::default();
         let mut swept = crate::sweep::SweptReport::default();
         for _ in 0..n {
-            let before = self.positions();
-            let mut r = self.step_bfemp(integrator)?;
-            r.swept = self.sweep(&before);
+            let before = w.bodies.positions();
+            let mut r = self.solve(w, integrator)?;
+            r.swept = w.bodies.sweep_pairs(&before);
             work.add_work(&r);
             if r.swept.tunnelled > 0 {
                 return Ok(Err(r.swept));
@@ -174,63 +194,17 @@ impl<const D: usize> World<D> {
         Ok(Ok(last))
     }
 
-    /// Set Δt of the steps that follow (the world's and every pair's friction, whose
-    /// mollifier threshold is ε_v Δt).
-    fn set_dt(&mut self, dt: f64) {
-        self.dt = dt;
-        for p in &mut self.pairs {
-            p.friction.dt = dt;
-        }
-    }
-
-    /// The state a BFEMP step changes.
-    fn save(&self) -> Saved<D> {
-        Saved {
-            time: self.time,
-            step: self.step,
-            at: self.positions(),
-            mpm: self.mpm.as_ref().map(|m| SavedMpm {
-                v: m.v.clone(),
-                b: m.b.clone(),
-                f: m.f.clone(),
-                a: m.a.clone(),
-                contact_force: m.contact_force.clone(),
-            }),
-            fem: self
-                .fem
-                .iter()
-                .map(|b| [b.v.clone(), b.a.clone(), b.contact_force.clone()])
-                .collect(),
-        }
-    }
-
-    /// Back to a saved state.
-    fn restore(&mut self, s: &Saved<D>) {
-        self.time = s.time;
-        self.step = s.step;
-        if let (Some(m), Some(saved)) = (self.mpm.as_mut(), &s.mpm) {
-            m.x.clone_from(&s.at.particles);
-            m.v.clone_from(&saved.v);
-            m.b.clone_from(&saved.b);
-            m.f.clone_from(&saved.f);
-            m.a.clone_from(&saved.a);
-            m.contact_force.clone_from(&saved.contact_force);
-        }
-        for ((body, x), [v, a, c]) in self.fem.iter_mut().zip(&s.at.fem).zip(&s.fem) {
-            body.x.clone_from(x);
-            body.v.clone_from(v);
-            body.a.clone_from(a);
-            body.contact_force.clone_from(c);
-        }
-    }
-
     /// One BFEMP step with `integrator`.
-    fn step_bfemp(&mut self, integrator: Integrator) -> Result<StepReport, SimError> {
-        let dt = self.dt;
-        let t1 = self.time + dt;
-        let fail = |world: &World<D>, message: String| SimError::StepFailed {
-            step: world.step,
-            time: world.time,
+    fn solve<const D: usize>(
+        &mut self,
+        w: &mut Parts<'_, D>,
+        integrator: Integrator,
+    ) -> Result<StepReport, SimError> {
+        let dt = w.clock.dt;
+        let t1 = w.clock.time + dt;
+        let fail = |clock: &Clock, message: String| SimError::StepFailed {
+            step: clock.step,
+            time: clock.time,
             message,
         };
 
@@ -250,17 +224,16 @@ impl<const D: usize> World<D> {
             penalties,
             mut x_hat,
             transfers_s,
-        } = self.setup(integrator)?;
+        } = w.setup(integrator)?;
         let clock_setup = clock.elapsed().as_secs_f64() - transfers_s;
         let clock = std::time::Instant::now();
-        let contact_stabilized =
-            matches!(&self.method, MethodState::Bfemp(b) if b.contact_stabilized);
+        let contact_stabilized = self.contact_stabilized;
         // 3. The friction loop around the minimisation.
         let params = NewtonParams {
-            tolerance: self.scene.spec.solver.tolerance,
+            tolerance: w.scene.spec.solver.tolerance,
             dt,
-            max_iterations: self.scene.spec.solver.max_newton_iterations,
-            ordering: match self.scene.spec.solver.ordering {
+            max_iterations: w.scene.spec.solver.max_newton_iterations,
+            ordering: match w.scene.spec.solver.ordering {
                 // Measured (docs/performance.md, `cargo xtask bench`): nested dissection as fast
                 // as AMD at the twist's 5k 3D unknowns, 1.6× faster per contact step at
                 // block_on_plate_3d's 26k.
@@ -269,47 +242,47 @@ impl<const D: usize> World<D> {
                 OrderingSpec::NestedDissection => Ordering::NestedDissection { block: D },
             },
             threads: Threads::Auto,
-            hessian: match self.scene.spec.solver.projection {
+            hessian: match w.scene.spec.solver.projection {
                 ProjectionSpec::Always => HessianStrategy::Projected,
                 ProjectionSpec::WhenIndefinite => HessianStrategy::ExactWhenDefinite,
             },
-            linear: match self.scene.spec.solver.linear {
+            linear: match w.scene.spec.solver.linear {
                 LinearSpec::Cholesky => LinearSolver::Cholesky,
                 LinearSpec::Pcg => LinearSolver::Pcg {
-                    rtol: self.scene.spec.solver.pcg_rtol,
-                    max_iterations: self.scene.spec.solver.pcg_max_iterations,
-                    forcing: match self.scene.spec.solver.pcg_rtol_max {
+                    rtol: w.scene.spec.solver.pcg_rtol,
+                    max_iterations: w.scene.spec.solver.pcg_max_iterations,
+                    forcing: match w.scene.spec.solver.pcg_rtol_max {
                         Some(max) => Forcing::Adaptive { max },
                         None => Forcing::Fixed,
                     },
                 },
             },
-            reuse_hessian_below: self.scene.spec.solver.reuse_hessian_below,
+            reuse_hessian_below: w.scene.spec.solver.reuse_hessian_below,
             ..Default::default()
         };
-        let w = integrator.weight(dt);
+        let weight = integrator.weight(dt);
         let dofs = Dofs {
             n_grid,
             fem_offset: fem_offset.clone(),
             n: n_dofs,
         };
-        let any_friction = self.pairs.iter().any(|p| p.friction.mu > 0.0);
-        let point_test = self.scene.spec.solver.newton_test == NewtonTestSpec::Points;
+        let any_friction = w.bodies.pairs.iter().any(|p| p.friction.mu > 0.0);
+        let point_test = w.scene.spec.solver.newton_test == NewtonTestSpec::Points;
         let mut report = StepReport {
             friction_converged: true,
             transfers_s,
             ..Default::default()
         };
-        if contact_stabilized && !self.pairs.is_empty() {
+        if contact_stabilized && !w.bodies.pairs.is_empty() {
             // Contact-stabilised Newmark, the predictor step: x_p = argmin ½‖x − (xⁿ + Δt vⁿ)‖²_M
             // + w B(x) (prescribed DOFs at their targets), and x̂ = x_p + Δt²/4 aⁿ.
             let mut raw = vec![0.0; n_dofs];
             Integrator::BackwardEuler.predictor(dt, &x0, &v0, &a0, &mut raw);
             let mut xp = x0.clone();
             let mut proj = StepObjective::new(
-                self.mpm.as_ref(),
-                &self.fem,
-                &self.pairs,
+                w.bodies.mpm.as_ref(),
+                &w.bodies.fem,
+                &w.bodies.pairs,
                 dofs.clone(),
                 Inertia {
                     mass: &mass,
@@ -318,7 +291,7 @@ impl<const D: usize> World<D> {
                     penalties: &[],
                 },
                 &x0,
-                w,
+                weight,
             )
             .contact_only();
             proj.point_test = point_test;
@@ -327,20 +300,17 @@ impl<const D: usize> World<D> {
             // negative): Newmark's predictor stays as it is, bit for bit.
             let at_raw = start_at_predictor(&mut proj, &x0, &fixed, &target, &raw, &mut xp);
             if !at_raw || proj.contact_summary(&xp).0 > 0 {
-                let MethodState::Bfemp(bfemp) = &mut self.method else {
-                    unreachable!("step_bfemp runs BFEMP worlds only");
-                };
-                let stats = bfemp
+                let stats = self
                     .projection
                     .minimize_to(&mut proj, &mut xp, &fixed, &target, &params)
                     .map_err(|e| match e {
                         femp_solver::SolveError::Interrupted { .. } => SimError::Interrupted {
-                            step: self.step,
-                            time: self.time,
+                            step: w.clock.step,
+                            time: w.clock.time,
                         },
                         e => SimError::StepFailed {
-                            step: self.step,
-                            time: self.time,
+                            step: w.clock.step,
+                            time: w.clock.time,
                             message: format!("{e} (contact-stabilised predictor)"),
                         },
                     })?;
@@ -356,31 +326,31 @@ impl<const D: usize> World<D> {
         }
         let mut x = x0.clone();
         // Start the fixed DOFs where they are; Newton moves them to their targets.
-        let mpm_ref = self.mpm.as_ref();
+        let mpm_ref = w.bodies.mpm.as_ref();
         let mut obj = StepObjective::new(
             mpm_ref,
-            &self.fem,
-            &self.pairs,
+            &w.bodies.fem,
+            &w.bodies.pairs,
             dofs,
             Inertia {
                 mass: &mass,
                 x_hat: &x_hat,
-                gravity: self.gravity,
+                gravity: w.bodies.gravity,
                 penalties: &penalties,
             },
             &x0,
-            w,
+            weight,
         );
         obj.point_test = point_test;
         let _ = start_at_predictor(&mut obj, &x0, &fixed, &target, &x_hat, &mut x);
         report.setup_s = clock_setup + clock.elapsed().as_secs_f64();
         let max_fric = if any_friction {
-            self.scene.spec.solver.max_friction_iterations
+            w.scene.spec.solver.max_friction_iterations
         } else {
             1
         };
-        let relag_below = self.scene.spec.solver.friction_update_below;
-        let (step, time) = (self.step, self.time);
+        let relag_below = w.scene.spec.solver.friction_update_below;
+        let (step, time) = (w.clock.step, w.clock.time);
         let failed = |(e, j): (femp_solver::SolveError, usize)| match e {
             femp_solver::SolveError::Interrupted { .. } => SimError::Interrupted { step, time },
             e => SimError::StepFailed {
@@ -396,16 +366,13 @@ impl<const D: usize> World<D> {
                 ),
             },
         };
-        let MethodState::Bfemp(bfemp) = &mut self.method else {
-            unreachable!("step_bfemp runs BFEMP worlds only");
-        };
         let start = x.clone();
         let mut solve = |obj: &mut StepObjective<'_, D>,
                          x: &mut Vec<f64>,
                          params: &NewtonParams,
                          report: &mut StepReport| {
             friction_loop(
-                &mut bfemp.newton,
+                &mut self.newton,
                 obj,
                 x,
                 &x0,
@@ -418,7 +385,7 @@ impl<const D: usize> World<D> {
         match solve(&mut obj, &mut x, &params, &mut report) {
             Ok(()) => {}
             Err(first)
-                if self.scene.spec.solver.retry_other_projection
+                if w.scene.spec.solver.retry_other_projection
                     && !matches!(first.0, femp_solver::SolveError::Interrupted { .. }) =>
             {
                 // Solve the step again from its start with the other Hessian strategy
@@ -463,8 +430,10 @@ impl<const D: usize> World<D> {
         }
         let (nterms, dmin) = obj.contact_summary(&x);
         let pad = |v: &SVector<f64, D>| std::array::from_fn(|a| if a < D { v[a] } else { 0.0 });
-        let mut on_particles = vec![SVector::zeros(); self.mpm.as_ref().map_or(0, |m| m.x.len())];
-        let mut on_vertices: Vec<Vec<SVector<f64, D>>> = self
+        let mut on_particles =
+            vec![SVector::zeros(); w.bodies.mpm.as_ref().map_or(0, |m| m.x.len())];
+        let mut on_vertices: Vec<Vec<SVector<f64, D>>> = w
+            .bodies
             .fem
             .iter()
             .map(|b| vec![SVector::zeros(); b.x.len()])
@@ -488,7 +457,7 @@ impl<const D: usize> World<D> {
                 carried[d] = if fixed[d] || mass[d] <= 0.0 {
                     0.0
                 } else {
-                    -carried[d] / (w * mass[d])
+                    -carried[d] / (weight * mass[d])
                 };
             }
         }
@@ -497,22 +466,22 @@ impl<const D: usize> World<D> {
                 let (d, gp) = (p.node * D, p.gradient(&x));
                 for a in 0..D {
                     if !fixed[d + a] && mass[d + a] > 0.0 {
-                        carried[d + a] -= gp[a] / (w * mass[d + a]);
+                        carried[d + a] -= gp[a] / (weight * mass[d + a]);
                     }
                 }
             }
         }
         report.objective.add(&obj.timing);
         drop(obj);
-        if let Some(m) = self.mpm.as_mut() {
+        if let Some(m) = w.bodies.mpm.as_mut() {
             m.contact_force = on_particles;
         }
-        for (body, f) in self.fem.iter_mut().zip(on_vertices) {
+        for (body, f) in w.bodies.fem.iter_mut().zip(on_vertices) {
             body.contact_force = f;
         }
         if x.iter().any(|v| !v.is_finite()) {
             return Err(fail(
-                self,
+                w.clock,
                 "the solution contains non-finite positions".into(),
             ));
         }
@@ -524,7 +493,7 @@ impl<const D: usize> World<D> {
 
         // 5. Grid-to-particle and advection.
         let clock = std::time::Instant::now();
-        if let Some(m) = self.mpm.as_mut() {
+        if let Some(m) = w.bodies.mpm.as_mut() {
             let st = &m.stencils;
             let gv1: Vec<SVector<f64, D>> = (0..n_grid)
                 .map(|i| SVector::from_column_slice(&v1[i * D..i * D + D]))
@@ -539,8 +508,8 @@ impl<const D: usize> World<D> {
             };
             res.and_then(|_| transfer::advect(st, &gu, &mut m.x, Some(&mut m.f)))
                 .map_err(|e| SimError::StepFailed {
-                    step: self.step,
-                    time: self.time,
+                    step: w.clock.step,
+                    time: w.clock.time,
                     message: e.to_string(),
                 })?;
             if needs_acc {
@@ -549,8 +518,8 @@ impl<const D: usize> World<D> {
                     .collect();
                 transfer::interpolate(st, &carried, &mut m.a).map_err(|e| {
                     SimError::StepFailed {
-                        step: self.step,
-                        time: self.time,
+                        step: w.clock.step,
+                        time: w.clock.time,
                         message: e.to_string(),
                     }
                 })?;
@@ -559,11 +528,14 @@ impl<const D: usize> World<D> {
                 m.f.iter()
                     .position(|f: &SMatrix<f64, D, D>| !(femp_fem::linalg::det(f) > 0.0))
             {
-                return Err(fail(self, format!("particle {bad} inverted (det F ≤ 0)")));
+                return Err(fail(
+                    w.clock,
+                    format!("particle {bad} inverted (det F ≤ 0)"),
+                ));
             }
         }
         report.transfers_s += clock.elapsed().as_secs_f64();
-        for (b, body) in self.fem.iter_mut().enumerate() {
+        for (b, body) in w.bodies.fem.iter_mut().enumerate() {
             for vtx in 0..body.x.len() {
                 let d = fem_offset[b] + vtx * D;
                 body.x[vtx] = SVector::from_column_slice(&x[d..d + D]);
@@ -573,16 +545,69 @@ impl<const D: usize> World<D> {
                 }
             }
         }
-        self.time = t1;
-        self.step += 1;
+        w.clock.time = t1;
+        w.clock.step += 1;
         Ok(report)
+    }
+}
+
+impl<const D: usize> Parts<'_, D> {
+    /// Set Δt of the steps that follow (the world's and every pair's friction, whose
+    /// mollifier threshold is ε_v Δt).
+    fn set_dt(&mut self, dt: f64) {
+        self.clock.dt = dt;
+        for p in &mut self.bodies.pairs {
+            p.friction.dt = dt;
+        }
+    }
+
+    /// The state a BFEMP step changes.
+    fn save(&self) -> Saved<D> {
+        Saved {
+            time: self.clock.time,
+            step: self.clock.step,
+            at: self.bodies.positions(),
+            mpm: self.bodies.mpm.as_ref().map(|m| SavedMpm {
+                v: m.v.clone(),
+                b: m.b.clone(),
+                f: m.f.clone(),
+                a: m.a.clone(),
+                contact_force: m.contact_force.clone(),
+            }),
+            fem: self
+                .bodies
+                .fem
+                .iter()
+                .map(|b| [b.v.clone(), b.a.clone(), b.contact_force.clone()])
+                .collect(),
+        }
+    }
+
+    /// Back to a saved state.
+    fn restore(&mut self, s: &Saved<D>) {
+        self.clock.time = s.time;
+        self.clock.step = s.step;
+        if let (Some(m), Some(saved)) = (self.bodies.mpm.as_mut(), &s.mpm) {
+            m.x.clone_from(&s.at.particles);
+            m.v.clone_from(&saved.v);
+            m.b.clone_from(&saved.b);
+            m.f.clone_from(&saved.f);
+            m.a.clone_from(&saved.a);
+            m.contact_force.clone_from(&saved.contact_force);
+        }
+        for ((body, x), [v, a, c]) in self.bodies.fem.iter_mut().zip(&s.at.fem).zip(&s.fem) {
+            body.x.clone_from(x);
+            body.v.clone_from(v);
+            body.a.clone_from(a);
+            body.contact_force.clone_from(c);
+        }
     }
 
     /// Steps 1–2 of a time step: particle-to-grid, the DOF layout (active grid nodes, then FEM
     /// vertices), prescribed targets, level-set boundary conditions and the predictor.
     pub(crate) fn setup(&mut self, integrator: Integrator) -> Result<StepSetup<D>, SimError> {
-        let dt = self.dt;
-        let t1 = self.time + dt;
+        let dt = self.clock.dt;
+        let t1 = self.clock.time + dt;
         // 1. Particle-to-grid.
         let clock = std::time::Instant::now();
         let mut n_grid = 0;
@@ -590,10 +615,10 @@ impl<const D: usize> World<D> {
         let mut grid_v: Vec<SVector<f64, D>> = Vec::new();
         let mut grid_a: Vec<SVector<f64, D>> = Vec::new();
         let mut grid_x: Vec<SVector<f64, D>> = Vec::new();
-        if let Some(m) = self.mpm.as_mut() {
+        if let Some(m) = self.bodies.mpm.as_mut() {
             m.stencils.rebuild(&m.x).map_err(|e| SimError::StepFailed {
-                step: self.step,
-                time: self.time,
+                step: self.clock.step,
+                time: self.clock.time,
                 message: e.to_string(),
             })?;
             n_grid = m.stencils.num_nodes();
@@ -607,8 +632,8 @@ impl<const D: usize> World<D> {
             };
             r.and_then(|_| transfer::normalise(&grid_m, &mut grid_v))
                 .map_err(|e| SimError::StepFailed {
-                    step: self.step,
-                    time: self.time,
+                    step: self.clock.step,
+                    time: self.clock.time,
                     message: e.to_string(),
                 })?;
             grid_a = vec![SVector::zeros(); n_grid];
@@ -626,8 +651,8 @@ impl<const D: usize> World<D> {
                 transfer::p2g_vector(&m.stencils, &m.mass, &m.a, &mut grid_a)
                     .and_then(|_| transfer::normalise(&grid_m, &mut grid_a))
                     .map_err(|e| SimError::StepFailed {
-                        step: self.step,
-                        time: self.time,
+                        step: self.clock.step,
+                        time: self.clock.time,
                         message: e.to_string(),
                     })?;
                 let mut gradient = Vec::new();
@@ -635,7 +660,7 @@ impl<const D: usize> World<D> {
                 // Nodes with next to no mass are pinned (below): no division by it.
                 let tiny = 1e-14 * grid_m.iter().copied().fold(0.0, f64::max);
                 for ((a, f), &mi) in grid_a.iter_mut().zip(&gradient).zip(&grid_m) {
-                    *a += self.gravity;
+                    *a += self.bodies.gravity;
                     if mi > tiny {
                         *a -= f / mi;
                     }
@@ -646,9 +671,9 @@ impl<const D: usize> World<D> {
 
         let transfers_s = clock.elapsed().as_secs_f64();
         // 2. DOF layout: grid nodes, then FEM vertices body by body.
-        let mut fem_offset = Vec::with_capacity(self.fem.len());
+        let mut fem_offset = Vec::with_capacity(self.bodies.fem.len());
         let mut n_dofs = n_grid * D;
-        for b in &self.fem {
+        for b in &self.bodies.fem {
             fem_offset.push(n_dofs);
             n_dofs += b.x.len() * D;
         }
@@ -676,15 +701,15 @@ impl<const D: usize> World<D> {
         // One gradient and one per-element force buffer serve every body.
         let mut gradient = Vec::new();
         let mut element_forces = Vec::new();
-        for (b, body) in self.fem.iter().enumerate() {
+        for (b, body) in self.bodies.fem.iter().enumerate() {
             gradient.clear();
             gradient.resize(body.x.len(), SVector::<f64, D>::zeros());
             if integrator.needs_acceleration() && !body.fully_prescribed {
                 body.elastic
                     .add_gradient_with(&body.x, 1.0, &mut element_forces, &mut gradient)
                     .map_err(|e| SimError::StepFailed {
-                        step: self.step,
-                        time: self.time,
+                        step: self.clock.step,
+                        time: self.clock.time,
                         message: format!("FEM body {}: {e}", body.name),
                     })?;
             }
@@ -695,7 +720,8 @@ impl<const D: usize> World<D> {
                     x0[d] = body.x[vtx][a];
                     v0[d] = body.v[vtx][a];
                     if integrator.needs_acceleration() && mass[d] > 0.0 {
-                        a0[d] = body.a[vtx][a] + self.gravity[a] - gradient[vtx][a] / mass[d];
+                        a0[d] =
+                            body.a[vtx][a] + self.bodies.gravity[a] - gradient[vtx][a] / mass[d];
                     }
                 }
             }
@@ -713,7 +739,7 @@ impl<const D: usize> World<D> {
         }
         // Level-set boundaries on grid nodes (at the end-of-step boundary position).
         let mut penalties: Vec<Penalty<D>> = Vec::new();
-        for ls in &self.boundaries {
+        for ls in &self.bodies.boundaries {
             let vb = ls.velocity(t1 - 0.5 * dt);
             for i in 0..n_grid {
                 let (phi, n) = ls.eval(&grid_x[i], t1);
@@ -765,100 +791,6 @@ impl<const D: usize> World<D> {
             x_hat,
             transfers_s,
         })
-    }
-}
-
-/// Where the particles of `mpm` and the vertices of `fem` are.
-fn positions_of<const D: usize>(
-    mpm: Option<&crate::bodies::Mpm<D>>,
-    fem: &[crate::bodies::FemBody<D>],
-) -> crate::sweep::Positions<D> {
-    crate::sweep::Positions {
-        particles: mpm.map_or_else(Vec::new, |m| m.x.clone()),
-        fem: fem.iter().map(|b| b.x.clone()).collect(),
-    }
-}
-
-/// The straight-path check of a step ([`crate::sweep`]) over this world's bodies.
-impl<const D: usize> World<D> {
-    /// Where the particles and FEM vertices are now.
-    pub fn positions(&self) -> crate::sweep::Positions<D> {
-        positions_of(self.mpm.as_ref(), &self.fem)
-    }
-
-    /// The straight paths from `before` (an earlier [`World::positions`], normally the start of
-    /// the step just taken) to now, against every body the points can touch: a BFEMP world's
-    /// contact pairs; in an augury world every FEM body's boundary vertices against every other
-    /// body.
-    pub fn sweep(&self, before: &crate::sweep::Positions<D>) -> crate::sweep::SweptReport {
-        let mut report = crate::sweep::SweptReport::default();
-        let particles_now = self.mpm.as_ref().map_or(&[][..], |m| &m.x[..]);
-        // (points, facet body, names)
-        let mut sets: Vec<(&crate::bodies::Points, usize, &str, &str)> = Vec::new();
-        let augury_pairs: Vec<crate::bodies::Points>;
-        if self.augury().is_some() {
-            augury_pairs = (0..self.fem.len())
-                .map(|body| crate::bodies::Points::Fem { body })
-                .collect();
-            for (i, pts) in augury_pairs.iter().enumerate() {
-                for j in 0..self.fem.len() {
-                    if i != j {
-                        sets.push((pts, j, &self.fem[i].name, &self.fem[j].name));
-                    }
-                }
-            }
-        } else {
-            for pair in &self.pairs {
-                sets.push((&pair.points, pair.facets_of, &pair.names.0, &pair.names.1));
-            }
-        }
-        for (points, facets_of, points_name, body_name) in sets {
-            let (p0, p1, ids, particle): (Vec<_>, Vec<_>, Vec<usize>, bool) = match points {
-                crate::bodies::Points::Mpm { range } => (
-                    before.particles[range.0..range.1].to_vec(),
-                    particles_now[range.0..range.1].to_vec(),
-                    (range.0..range.1).collect(),
-                    true,
-                ),
-                crate::bodies::Points::Fem { body } => {
-                    let vs = self.fem[*body].boundary.vertices();
-                    (
-                        vs.iter().map(|&v| before.fem[*body][v]).collect(),
-                        vs.iter().map(|&v| self.fem[*body].x[v]).collect(),
-                        vs.to_vec(),
-                        false,
-                    )
-                }
-            };
-            let body = &self.fem[facets_of];
-            let r = crate::sweep::sweep_against(&p0, &p1, body, &before.fem[facets_of], &body.x);
-            report.entered += r.len();
-            for crate::sweep::Entered {
-                k,
-                t,
-                depth,
-                through,
-            } in r
-            {
-                report.tunnelled += usize::from(through);
-                if depth > report.depth || report.worst.is_none() {
-                    report.depth = report.depth.max(depth);
-                    let at = p0[k] + (p1[k] - p0[k]) * t;
-                    report.worst = Some(crate::sweep::SweptPoint {
-                        points_of: points_name.to_string(),
-                        point: ids[k],
-                        particle,
-                        body: body_name.to_string(),
-                        from: p0[k].as_slice().to_vec(),
-                        to: p1[k].as_slice().to_vec(),
-                        t,
-                        at: at.as_slice().to_vec(),
-                        depth,
-                    });
-                }
-            }
-        }
-        report
     }
 }
 
@@ -956,13 +888,13 @@ fn start_at_predictor<const D: usize>(
 
 #[cfg(test)]
 impl<const D: usize> StepSetup<D> {
-    /// The incremental potential of this step over `world`'s bodies (as [`World::step`]
-    /// builds it from the world's fields).
-    pub(crate) fn objective<'a>(&'a self, world: &'a World<D>) -> StepObjective<'a, D> {
+    /// The incremental potential of this step over `bodies`, with the integrator's weight `w`
+    /// (as the step builds it).
+    pub(crate) fn objective<'a>(&'a self, bodies: &'a Bodies<D>, w: f64) -> StepObjective<'a, D> {
         StepObjective::new(
-            world.mpm.as_ref(),
-            &world.fem,
-            &world.pairs,
+            bodies.mpm.as_ref(),
+            &bodies.fem,
+            &bodies.pairs,
             Dofs {
                 n_grid: self.n_grid,
                 fem_offset: self.fem_offset.clone(),
@@ -971,15 +903,11 @@ impl<const D: usize> StepSetup<D> {
             Inertia {
                 mass: &self.mass,
                 x_hat: &self.x_hat,
-                gravity: world.gravity,
+                gravity: bodies.gravity,
                 penalties: &self.penalties,
             },
             &self.x0,
-            world
-                .bfemp()
-                .expect("a BFEMP world")
-                .integrator
-                .weight(world.dt),
+            w,
         )
     }
 }

@@ -24,7 +24,7 @@ use femp_contact::ccd::{self, CcdOptions};
 use nalgebra::{SVector, Vector3};
 use rayon::prelude::*;
 
-use crate::bodies::{FemBody, point_facet_distance};
+use crate::bodies::{Bodies, FemBody, Points, point_facet_distance};
 use crate::build::inside_simplex;
 
 /// Moments sampled between a path's first and last touch of a body.
@@ -296,5 +296,85 @@ impl<const D: usize> SweptElements<D> {
             });
             inside_simplex(p, &IDX[..=D], &x)
         })
+    }
+}
+
+impl<const D: usize> Bodies<D> {
+    /// Where the particles and FEM vertices are now.
+    pub fn positions(&self) -> Positions<D> {
+        Positions {
+            particles: self.mpm.as_ref().map_or_else(Vec::new, |m| m.x.clone()),
+            fem: self.fem.iter().map(|b| b.x.clone()).collect(),
+        }
+    }
+
+    /// The straight paths of every contact pair's points from `before` (an earlier
+    /// [`Bodies::positions`], normally the start of the step just taken) to now, against the
+    /// pair's body.
+    pub fn sweep_pairs(&self, before: &Positions<D>) -> SweptReport {
+        let sets = self
+            .pairs
+            .iter()
+            .map(|p| (&p.points, p.facets_of, &p.names.0[..], &p.names.1[..]))
+            .collect();
+        self.sweep(before, sets)
+    }
+
+    /// The straight paths from `before` to now of each set of points `(points, the body whose
+    /// boundary they are checked against, the points' body's name, that body's name)`.
+    pub(crate) fn sweep(
+        &self,
+        before: &Positions<D>,
+        sets: Vec<(&Points, usize, &str, &str)>,
+    ) -> SweptReport {
+        let mut report = SweptReport::default();
+        let particles_now = self.mpm.as_ref().map_or(&[][..], |m| &m.x[..]);
+        for (points, facets_of, points_name, body_name) in sets {
+            let (p0, p1, ids, particle): (Vec<_>, Vec<_>, Vec<usize>, bool) = match points {
+                Points::Mpm { range } => (
+                    before.particles[range.0..range.1].to_vec(),
+                    particles_now[range.0..range.1].to_vec(),
+                    (range.0..range.1).collect(),
+                    true,
+                ),
+                Points::Fem { body } => {
+                    let vs = self.fem[*body].boundary.vertices();
+                    (
+                        vs.iter().map(|&v| before.fem[*body][v]).collect(),
+                        vs.iter().map(|&v| self.fem[*body].x[v]).collect(),
+                        vs.to_vec(),
+                        false,
+                    )
+                }
+            };
+            let body = &self.fem[facets_of];
+            let r = sweep_against(&p0, &p1, body, &before.fem[facets_of], &body.x);
+            report.entered += r.len();
+            for Entered {
+                k,
+                t,
+                depth,
+                through,
+            } in r
+            {
+                report.tunnelled += usize::from(through);
+                if depth > report.depth || report.worst.is_none() {
+                    report.depth = report.depth.max(depth);
+                    let at = p0[k] + (p1[k] - p0[k]) * t;
+                    report.worst = Some(SweptPoint {
+                        points_of: points_name.to_string(),
+                        point: ids[k],
+                        particle,
+                        body: body_name.to_string(),
+                        from: p0[k].as_slice().to_vec(),
+                        to: p1[k].as_slice().to_vec(),
+                        t,
+                        at: at.as_slice().to_vec(),
+                        depth,
+                    });
+                }
+            }
+        }
+        report
     }
 }

@@ -1,7 +1,8 @@
-//! The simulation state built from a scene: the bodies (MPM particles on a background grid, FEM
-//! bodies, contact pairs and level-set boundaries — their types live in `bodies` and are
-//! re-exported here) and the method's own state ([`MethodState`]), with the checks a scene must
-//! pass before it runs (sizes, overlaps).
+//! The simulation state built from a scene: the bodies ([`Bodies`]: MPM particles on a
+//! background grid, FEM bodies, contact pairs and level-set boundaries — their types live in
+//! `bodies` and are re-exported here), the [`Clock`] and the method that advances them
+//! ([`Stepper`], chosen once here), with the checks a scene must pass before it runs (sizes,
+//! overlaps).
 
 use femp_contact::friction::FrictionParams;
 use femp_contact::{
@@ -9,73 +10,40 @@ use femp_contact::{
 };
 use femp_fem::{Boundary, ElasticBody, LinearElastic, Material, NeoHookean, lumped_masses};
 use femp_kernels::{Grid, Kernel};
-use femp_solver::{Integrator, Newton};
 use nalgebra::{SMatrix, SVector};
-use rayon::prelude::*;
 
-use crate::augury::AuguryState;
 use crate::build::{sample_shape, transform_fn};
+pub use crate::clock::Clock;
 use crate::error::{SimError, invalid};
 use crate::motion::{Motion, angular_components};
-use crate::overlap::Meeting;
+use crate::overlap::{fem_pair_overlap, points_inside};
+use crate::report::StepReport;
 use crate::scene::mesh::fem_mesh;
 use crate::scene::{
-    BarrierHessianSpec, BodySpec, IntegratorSpec, MaterialSpec, ModelSpec, Scene, TransferSpec,
-    VertexSelector,
+    BarrierHessianSpec, BodySpec, MaterialSpec, ModelSpec, Scene, TransferSpec, VertexSelector,
 };
+pub use crate::step::Bfemp;
+pub use crate::stepper::Stepper;
+use crate::sweep::{Positions, SweptReport};
 
-pub(crate) use crate::bodies::point_facet_distance;
 pub use crate::bodies::{
-    FemBody, LevelSet, Mpm, MpmBody, Pair, Points, Transfer, first_inside, inside_elements,
+    Bodies, FemBody, LevelSet, Mpm, MpmBody, Pair, Points, Transfer, first_inside, inside_elements,
 };
 
-/// The whole simulation state.
+/// The whole simulation state: the scene it was built from, the bodies, the clock and the
+/// method that advances them (chosen once, when the world is built).
 pub struct World<const D: usize> {
     /// The scene.
     pub scene: Scene,
-    /// Simulated time.
-    pub time: f64,
-    /// Steps taken.
-    pub step: usize,
-    /// Time step.
-    pub dt: f64,
-    /// Gravity.
-    pub gravity: SVector<f64, D>,
-    /// MPM state (if any MPM body).
-    pub mpm: Option<Mpm<D>>,
-    /// FEM bodies.
-    pub fem: Vec<FemBody<D>>,
-    /// Contact pairs.
-    pub pairs: Vec<Pair<D>>,
-    /// Level-set boundaries.
-    pub boundaries: Vec<LevelSet<D>>,
-    /// What advances the bodies: the method's own state.
-    pub method: MethodState<D>,
+    /// The bodies.
+    pub bodies: Bodies<D>,
+    /// Simulated time, steps taken and the time step.
+    pub clock: Clock,
+    /// What advances the bodies: the method's own state, chosen when the world is built.
+    pub stepper: Stepper<D>,
     /// Once set, the step in progress stops before its next Newton iteration
     /// ([`World::set_interrupt`]).
     pub(crate) interrupt: Option<std::sync::Arc<std::sync::atomic::AtomicBool>>,
-}
-
-/// Each method's own state over the world's bodies.
-pub enum MethodState<const D: usize> {
-    /// BFEMP: one implicit solve per step.
-    Bfemp(Box<Bfemp>),
-    /// Augury contact: explicit dynamics with APIC transfers on a background grid.
-    Augury(Box<AuguryState<D>>),
-}
-
-/// The state of the implicit (BFEMP) method.
-pub struct Bfemp {
-    /// The time integrator of the incremental potential.
-    pub integrator: Integrator,
-    /// Contact-stabilised Newmark: the predictor is projected onto what the barrier admits
-    /// before the step, and the acceleration carried to the next step excludes contact.
-    pub contact_stabilized: bool,
-    /// The Newton solver (kept across steps: symbolic factorisations and buffers are reused).
-    pub newton: Newton,
-    /// The predictor projection's Newton solver (contact-stabilised Newmark; its own Hessian
-    /// pattern, so kept apart from the step's).
-    pub projection: Newton,
 }
 
 fn make_material(m: &MaterialSpec) -> Result<Material, SimError> {
@@ -111,40 +79,10 @@ fn rigid_velocity<const D: usize>(
 }
 
 impl<const D: usize> World<D> {
-    /// The explicit system of an augury scene (`None` for BFEMP).
-    pub fn augury(&self) -> Option<&AuguryState<D>> {
-        match &self.method {
-            MethodState::Augury(a) => Some(a),
-            MethodState::Bfemp(_) => None,
-        }
-    }
-
-    /// The implicit method's state (`None` for augury).
-    pub fn bfemp(&self) -> Option<&Bfemp> {
-        match &self.method {
-            MethodState::Bfemp(b) => Some(b),
-            MethodState::Augury(_) => None,
-        }
-    }
-
     /// What the scene asks for that femp does not fully model, one sentence each: printed by
     /// `femp check` and at the start of a run, and kept in summary.json's `warnings`.
     pub fn warnings(&self) -> Vec<String> {
-        let mut w = Vec::new();
-        if D == 3 && self.augury().is_none() {
-            for p in &self.pairs {
-                if let Points::Fem { .. } = p.points {
-                    w.push(format!(
-                        "FEM–FEM contact between `{}` and `{}` in 3D is vertex–facet only: without \
-                         edge–edge terms two coarse meshes can pass edge through edge unseen \
-                         (docs/contact.md)",
-                        p.names.0, p.names.1
-                    ));
-                    break;
-                }
-            }
-        }
-        w
+        self.stepper.warnings(&self.bodies)
     }
 
     /// Build the state of a validated scene (the scene's dimension must be `D`). Rejects
@@ -171,13 +109,6 @@ impl<const D: usize> World<D> {
             .gravity
             .as_deref()
             .map_or_else(SVector::zeros, SVector::from_column_slice);
-        let contact_stabilized = spec.time.integrator == IntegratorSpec::ContactStabilizedNewmark;
-        let integrator = match spec.time.integrator {
-            IntegratorSpec::BackwardEuler => Integrator::BackwardEuler,
-            IntegratorSpec::Newmark | IntegratorSpec::ContactStabilizedNewmark => {
-                Integrator::Newmark
-            }
-        };
         let mut mpm: Option<Mpm<D>> = None;
         let mut fem: Vec<FemBody<D>> = Vec::new();
         // Index of each body in its own list, by scene order.
@@ -490,7 +421,8 @@ impl<const D: usize> World<D> {
                             add(Points::Fem { body: a }, b, (ni.clone(), nj.clone()))?;
                             add(Points::Fem { body: b }, a, (nj, ni))?;
                         }
-                        _ => unreachable!(),
+                        // MPM–MPM: skipped above (through the shared grid).
+                        ((true, _), (true, _)) => {}
                     }
                 }
             }
@@ -504,33 +436,62 @@ impl<const D: usize> World<D> {
                 motion: Motion::new(&b.motion, SVector::zeros()),
             })
             .collect();
-        let world = Self {
-            dt: spec.time.dt,
-            scene,
-            time: 0.0,
-            step: 0,
+        let bodies = Bodies {
             gravity,
             mpm,
             fem,
             pairs,
             boundaries,
-            method: MethodState::Bfemp(Box::new(Bfemp {
-                integrator,
-                contact_stabilized,
-                newton: Newton::new(),
-                projection: Newton::new(),
-            })),
+        };
+        let interrupted = || {
+            interrupt
+                .as_ref()
+                .is_some_and(|f| f.load(std::sync::atomic::Ordering::Relaxed))
+        };
+        check_overlaps(&bodies, interrupted)?;
+        let stepper = Stepper::build(&scene, &bodies, interrupted)?;
+        let mut world = Self {
+            clock: Clock {
+                time: 0.0,
+                step: 0,
+                dt: scene.spec.time.dt,
+            },
+            scene,
+            bodies,
+            stepper,
             interrupt: None,
         };
-        let mut world = world;
         world.set_interrupt(interrupt);
-        world.check_overlaps()?;
-        if world.scene.spec.method == crate::scene::Method::Augury {
-            check_augury_overlaps(&world.fem, || world.interrupted())?;
-            world.method =
-                MethodState::Augury(Box::new(AuguryState::build(&world.scene.spec, &world.fem)?));
-        }
         Ok(world)
+    }
+
+    /// Advance by one time step.
+    ///
+    /// A BFEMP step is checked along the straight paths of its points ([`crate::sweep`]): if a
+    /// point's path from where it was to where the step put it passes through a body (in
+    /// through one facet, out through one facing away from it), the step is solved again from
+    /// its start as 2, 4, 8, … substeps of Δt/n (each checked the same way), up to
+    /// `solver.max_substeps`; if even that does not keep every path out, the step fails with
+    /// the deepest path named and the world back at the step's start. The report says how many
+    /// substeps the step took and counts the work of every attempt. An augury step's paths are
+    /// checked too (every FEM body's boundary vertices against every other body) and reported.
+    pub fn step(&mut self) -> Result<StepReport, SimError> {
+        let interrupted = self.interrupted();
+        self.stepper
+            .step(&self.scene, &mut self.bodies, &mut self.clock, interrupted)
+    }
+
+    /// Where the particles and FEM vertices are now.
+    pub fn positions(&self) -> Positions<D> {
+        self.bodies.positions()
+    }
+
+    /// The straight paths from `before` (an earlier [`World::positions`], normally the start of
+    /// the step just taken) to now, against every body the points can touch: a BFEMP world's
+    /// contact pairs; in an augury world every FEM body's boundary vertices against every other
+    /// body.
+    pub fn sweep(&self, before: &Positions<D>) -> SweptReport {
+        self.stepper.sweep(&self.bodies, before)
     }
 
     /// A flag that stops the run: once set (by a signal handler, say), [`World::step`] returns
@@ -538,17 +499,14 @@ impl<const D: usize> World<D> {
     /// converges can still be stopped. An augury step is a bounded amount of explicit work and
     /// is checked before it starts.
     pub fn set_interrupt(&mut self, flag: Option<std::sync::Arc<std::sync::atomic::AtomicBool>>) {
-        if let MethodState::Bfemp(b) = &mut self.method {
-            b.newton.set_interrupt(flag.clone());
-            b.projection.set_interrupt(flag.clone());
-        }
+        self.stepper.set_interrupt(flag.clone());
         self.interrupt = flag;
     }
 
     /// The bodies whose contact forces `metrics.csv` reports: every body of a BFEMP scene, in
     /// scene order; none for augury (its contact acts through velocity corrections).
     pub fn force_bodies(&self) -> Vec<&str> {
-        if self.augury().is_some() {
+        if !self.stepper.reports_contact_forces() {
             return Vec::new();
         }
         self.scene.spec.bodies.iter().map(BodySpec::name).collect()
@@ -561,7 +519,7 @@ impl<const D: usize> World<D> {
         let names = self.force_bodies();
         let mut total = vec![[0.0; 3]; names.len()];
         let mut friction = vec![[0.0; 3]; names.len()];
-        for (pair, [b, f]) in self.pairs.iter().zip(pair_forces) {
+        for (pair, [b, f]) in self.bodies.pairs.iter().zip(pair_forces) {
             let (Some(i), Some(j)) = (
                 names.iter().position(|n| *n == pair.names.0),
                 names.iter().position(|n| *n == pair.names.1),
@@ -581,10 +539,11 @@ impl<const D: usize> World<D> {
     /// Whether anything outside the bodies does work on them: a prescribed vertex set or a
     /// level-set boundary that moves (then the total energy may rise legitimately).
     pub fn driven(&self) -> bool {
-        self.fem
+        self.bodies
+            .fem
             .iter()
             .any(|b| b.prescribed.iter().any(|(_, m)| m.moves()))
-            || self.boundaries.iter().any(|b| b.motion.moves())
+            || self.bodies.boundaries.iter().any(|b| b.motion.moves())
     }
 
     /// Whether the interrupt flag is set.
@@ -593,272 +552,136 @@ impl<const D: usize> World<D> {
             .as_ref()
             .is_some_and(|f| f.load(std::sync::atomic::Ordering::Relaxed))
     }
-
-    /// Reject bodies that start overlapping (BFEMP eq. 15): a particle or FEM vertex inside (or on
-    /// the boundary of) another body's elements, or MPM bodies whose particles interleave.
-    fn check_overlaps(&self) -> Result<(), SimError> {
-        let bbox = crate::overlap::bounding_box::<D>;
-        let body_box: Vec<_> = self.fem.iter().map(|b| bbox(&b.x)).collect();
-        let mpm_box: Vec<_> = self.mpm.as_ref().map_or_else(Vec::new, |m| {
-            m.bodies
-                .iter()
-                .map(|b| bbox(&m.x[b.range.0..b.range.1]))
-                .collect()
-        });
-        for pair in &self.pairs {
-            if self.interrupted() {
-                return Err(SimError::Interrupted { step: 0, time: 0.0 });
-            }
-            let target = &self.fem[pair.facets_of];
-            // Bodies whose boxes are apart cannot overlap or touch: skip them at once (many
-            // bodies far apart cost a box test each, not a point-location table each).
-            let points_box = match &pair.points {
-                Points::Mpm { range } => self
-                    .mpm
-                    .as_ref()
-                    .and_then(|m| m.bodies.iter().position(|b| b.range == *range))
-                    .and_then(|k| mpm_box[k]),
-                Points::Fem { body } => body_box[*body],
-            };
-            if let (Some((pl, ph)), Some((tl, th))) = (points_box, body_box[pair.facets_of])
-                && (0..D).any(|a| ph[a] < tl[a] || th[a] < pl[a])
-            {
-                continue;
-            }
-            let points: Vec<SVector<f64, D>> = match &pair.points {
-                Points::Mpm { range } => self
-                    .mpm
-                    .as_ref()
-                    .map(|m| m.x[range.0..range.1].to_vec())
-                    .unwrap_or_default(),
-                Points::Fem { body } => self.fem[*body]
-                    .boundary
-                    .vertices()
-                    .iter()
-                    .map(|&v| self.fem[*body].x[v])
-                    .collect(),
-            };
-            if let Some(e) = points_inside(&points, target, &pair.names, false) {
-                return Err(e);
-            }
-            // Touching the boundary (distance 0) is infeasible too.
-            let mut c = femp_contact::broad_phase::Candidates::default();
-            femp_contact::broad_phase::candidates_within(
-                &points,
-                &target.x,
-                &target.facets,
-                0.0,
-                &mut c,
-            );
-            let w = vec![1.0; points.len()];
-            let mut terms = Vec::new();
-            if let Err(femp_contact::ContactError::Penetration {
-                particle, facet, ..
-            }) = pair
-                .potential
-                .collect_terms(&points, &w, &target.x, &c, &mut terms)
-            {
-                return Err(SimError::Overlap {
-                    a: pair.names.0.clone(),
-                    b: pair.names.1.clone(),
-                    detail: format!(
-                        "point {particle} of `{}` touches boundary facet {facet} of `{}`",
-                        pair.names.0, pair.names.1
-                    ),
-                });
-            }
-        }
-        // FEM bodies whose boundaries cross or touch with no vertex inside the other, or that
-        // coincide: each FEM pair once (both directions are pairs).
-        for pair in &self.pairs {
-            let Points::Fem { body: a } = pair.points else {
-                continue;
-            };
-            let b = pair.facets_of;
-            if a > b {
-                continue;
-            }
-            if self.interrupted() {
-                return Err(SimError::Interrupted { step: 0, time: 0.0 });
-            }
-            fem_pair_overlap(&self.fem[a], &self.fem[b], false)?;
-        }
-        if let Some(m) = &self.mpm
-            && m.bodies.len() > 1
-        {
-            // Particles of different MPM bodies closer than half a particle spacing.
-            let h = m.grid.h();
-            let min_gap = 0.25 * h;
-            let mut cells: std::collections::HashMap<[i64; D], Vec<usize>> =
-                std::collections::HashMap::new();
-            for (p, x) in m.x.iter().enumerate() {
-                cells
-                    .entry(std::array::from_fn(|a| (x[a] / h).floor() as i64))
-                    .or_default()
-                    .push(p);
-            }
-            for (p, x) in m.x.iter().enumerate() {
-                let c: [i64; D] = std::array::from_fn(|a| (x[a] / h).floor() as i64);
-                for off in 0..3usize.pow(D as u32) {
-                    let mut rem = off;
-                    let key: [i64; D] = std::array::from_fn(|a| {
-                        let o = (rem % 3) as i64 - 1;
-                        rem /= 3;
-                        c[a] + o
-                    });
-                    for &q in cells.get(&key).map(Vec::as_slice).unwrap_or(&[]) {
-                        if m.body[q] != m.body[p] && (m.x[q] - x).norm() < min_gap {
-                            return Err(SimError::Overlap {
-                                a: m.bodies[m.body[p] as usize].name.clone(),
-                                b: m.bodies[m.body[q] as usize].name.clone(),
-                                detail: format!(
-                                    "particles {p} and {q} are {:.3e} m apart",
-                                    (m.x[q] - x).norm()
-                                ),
-                            });
-                        }
-                    }
-                }
-            }
-        }
-        Ok(())
-    }
 }
 
-/// The overlap error for `points` (of body `names.0`) inside or on the elements of `target`
-/// (body `names.1`), naming the deepest; `None` if there is none. With `touching_allowed`,
-/// points on the boundary (distance 0, to round-off) are not an overlap: the augury method
-/// starts from bodies in contact.
-fn points_inside<const D: usize>(
-    points: &[SVector<f64, D>],
-    target: &FemBody<D>,
-    names: &(String, String),
-    touching_allowed: bool,
-) -> Option<SimError> {
-    let mut inside = inside_elements(points, &target.mesh, &target.x);
-    if inside.is_empty() {
-        return None;
-    }
-    inside.sort_unstable();
-    inside.dedup_by_key(|(k, _)| *k);
-    let (lo, hi) = target.mesh.bounding_box();
-    // Round-off of placed meshes: a point this close to the boundary is on it.
-    let on_boundary = if touching_allowed { 1e-9 } else { 1e-12 } * (hi - lo).norm();
-    let mut deep: Vec<(usize, usize, f64)> = inside
-        .par_iter()
-        .map(|&(k, e)| {
-            let d = target
-                .facets
-                .iter()
-                .map(|f| point_facet_distance(&points[k], f, &target.x))
-                .fold(f64::INFINITY, f64::min);
-            (k, e, d)
-        })
-        .collect();
-    if touching_allowed {
-        deep.retain(|&(_, _, d)| d > on_boundary);
-    }
-    // The worst offender: the point deepest inside (farthest from the boundary).
-    let &(k, e, depth) = deep.iter().reduce(|a, b| if b.2 > a.2 { b } else { a })?;
-    let where_ = if depth <= on_boundary {
-        "lies on the boundary (distance 0)".to_string()
-    } else {
-        format!("is {depth:.3e} m inside")
-    };
-    Some(SimError::Overlap {
-        a: names.0.clone(),
-        b: names.1.clone(),
-        detail: format!(
-            "{} point(s) of `{}` lie inside{} `{}`; the deepest, point {k} at {:?}, {where_} (element {e})",
-            deep.len(),
-            names.0,
-            if touching_allowed { "" } else { " or on" },
-            names.1,
-            points[k].as_slice(),
-        ),
-    })
-}
-
-/// Augury scenes: no FEM body may start with a boundary vertex inside another, its boundary
-/// crossing another's, or its elements inside another (coincident bodies); touching is allowed.
-/// Only bodies whose bounding boxes overlap are compared (sorted and swept: about `n log n` for
-/// many bodies apart); `interrupted` is asked between pairs.
-fn check_augury_overlaps<const D: usize>(
-    fem: &[FemBody<D>],
+/// Reject bodies that start overlapping (BFEMP eq. 15): a particle or FEM vertex inside (or on
+/// the boundary of) another body's elements, or MPM bodies whose particles interleave.
+fn check_overlaps<const D: usize>(
+    bodies: &Bodies<D>,
     interrupted: impl Fn() -> bool,
 ) -> Result<(), SimError> {
-    let xs: Vec<&[SVector<f64, D>]> = fem.iter().map(|b| &b.x[..]).collect();
-    for (i, j) in crate::overlap::box_pairs(&xs) {
-        // Two obstacles that never move never meet: they may overlap (a wall into a floor).
-        if fem[i].fully_prescribed && fem[j].fully_prescribed {
+    let bbox = crate::overlap::bounding_box::<D>;
+    let body_box: Vec<_> = bodies.fem.iter().map(|b| bbox(&b.x)).collect();
+    let mpm_box: Vec<_> = bodies.mpm.as_ref().map_or_else(Vec::new, |m| {
+        m.bodies
+            .iter()
+            .map(|b| bbox(&m.x[b.range.0..b.range.1]))
+            .collect()
+    });
+    for pair in &bodies.pairs {
+        if interrupted() {
+            return Err(SimError::Interrupted { step: 0, time: 0.0 });
+        }
+        let target = &bodies.fem[pair.facets_of];
+        // Bodies whose boxes are apart cannot overlap or touch: skip them at once (many
+        // bodies far apart cost a box test each, not a point-location table each).
+        let points_box = match &pair.points {
+            Points::Mpm { range } => bodies
+                .mpm
+                .as_ref()
+                .and_then(|m| m.bodies.iter().position(|b| b.range == *range))
+                .and_then(|k| mpm_box[k]),
+            Points::Fem { body } => body_box[*body],
+        };
+        if let (Some((pl, ph)), Some((tl, th))) = (points_box, body_box[pair.facets_of])
+            && (0..D).any(|a| ph[a] < tl[a] || th[a] < pl[a])
+        {
+            continue;
+        }
+        let points: Vec<SVector<f64, D>> = match &pair.points {
+            Points::Mpm { range } => bodies
+                .mpm
+                .as_ref()
+                .map(|m| m.x[range.0..range.1].to_vec())
+                .unwrap_or_default(),
+            Points::Fem { body } => bodies.fem[*body]
+                .boundary
+                .vertices()
+                .iter()
+                .map(|&v| bodies.fem[*body].x[v])
+                .collect(),
+        };
+        if let Some(e) = points_inside(&points, target, &pair.names, false) {
+            return Err(e);
+        }
+        // Touching the boundary (distance 0) is infeasible too.
+        let mut c = femp_contact::broad_phase::Candidates::default();
+        femp_contact::broad_phase::candidates_within(
+            &points,
+            &target.x,
+            &target.facets,
+            0.0,
+            &mut c,
+        );
+        let w = vec![1.0; points.len()];
+        let mut terms = Vec::new();
+        if let Err(femp_contact::ContactError::Penetration {
+            particle, facet, ..
+        }) = pair
+            .potential
+            .collect_terms(&points, &w, &target.x, &c, &mut terms)
+        {
+            return Err(SimError::Overlap {
+                a: pair.names.0.clone(),
+                b: pair.names.1.clone(),
+                detail: format!(
+                    "point {particle} of `{}` touches boundary facet {facet} of `{}`",
+                    pair.names.0, pair.names.1
+                ),
+            });
+        }
+    }
+    // FEM bodies whose boundaries cross or touch with no vertex inside the other, or that
+    // coincide: each FEM pair once (both directions are pairs).
+    for pair in &bodies.pairs {
+        let Points::Fem { body: a } = pair.points else {
+            continue;
+        };
+        let b = pair.facets_of;
+        if a > b {
             continue;
         }
         if interrupted() {
             return Err(SimError::Interrupted { step: 0, time: 0.0 });
         }
-        for (a, b) in [(&fem[i], &fem[j]), (&fem[j], &fem[i])] {
-            let points: Vec<SVector<f64, D>> =
-                a.boundary.vertices().iter().map(|&v| a.x[v]).collect();
-            if let Some(e) = points_inside(&points, b, &(a.name.clone(), b.name.clone()), true) {
-                return Err(e);
-            }
+        fem_pair_overlap(&bodies.fem[a], &bodies.fem[b], false)?;
+    }
+    if let Some(m) = &bodies.mpm
+        && m.bodies.len() > 1
+    {
+        // Particles of different MPM bodies closer than half a particle spacing.
+        let h = m.grid.h();
+        let min_gap = 0.25 * h;
+        let mut cells: std::collections::HashMap<[i64; D], Vec<usize>> =
+            std::collections::HashMap::new();
+        for (p, x) in m.x.iter().enumerate() {
+            cells
+                .entry(std::array::from_fn(|a| (x[a] / h).floor() as i64))
+                .or_default()
+                .push(p);
         }
-        fem_pair_overlap(&fem[i], &fem[j], true)?;
-    }
-    Ok(())
-}
-
-/// The overlap error for FEM bodies `a` and `b` whose boundaries cross (or, unless
-/// `touching_allowed`, touch) or whose elements lie inside each other (coincident bodies).
-fn fem_pair_overlap<const D: usize>(
-    a: &FemBody<D>,
-    b: &FemBody<D>,
-    touching_allowed: bool,
-) -> Result<(), SimError> {
-    let err = |detail: String| SimError::Overlap {
-        a: a.name.clone(),
-        b: b.name.clone(),
-        detail,
-    };
-    // Touching allowed (augury): a crossing within the round-off of placed meshes is a touch,
-    // with the tolerance `points_inside` uses for a point on the boundary.
-    let meeting = if touching_allowed {
-        let scale = |x: &FemBody<D>| {
-            let (lo, hi) = x.mesh.bounding_box();
-            (hi - lo).norm()
-        };
-        Meeting::DeeperThan(1e-9 * scale(a).min(scale(b)))
-    } else {
-        Meeting::OrTouching
-    };
-    let (n, first) = crate::overlap::crossings(a, &a.x, b, &b.x, meeting);
-    if let Some(c) = first {
-        return Err(err(format!(
-            "their boundaries {} ({n} edge–facet pair(s)); the first near {:?} (boundary edge {} \
-             against boundary facet {})",
-            if touching_allowed {
-                "cross"
-            } else {
-                "cross or touch"
-            },
-            c.near.as_slice(),
-            c.edge,
-            c.facet
-        )));
-    }
-    for (x, y) in [(a, b), (b, a)] {
-        if let Some((k, at)) = crate::overlap::element_inside(x, &x.x, y, &y.x) {
-            return Err(SimError::Overlap {
-                a: x.name.clone(),
-                b: y.name.clone(),
-                detail: format!(
-                    "element {k} of `{}` (centroid {:?}) lies inside `{}`: the bodies overlap \
-                     (or coincide) without a vertex inside the other",
-                    x.name,
-                    at.as_slice(),
-                    y.name
-                ),
-            });
+        for (p, x) in m.x.iter().enumerate() {
+            let c: [i64; D] = std::array::from_fn(|a| (x[a] / h).floor() as i64);
+            for off in 0..3usize.pow(D as u32) {
+                let mut rem = off;
+                let key: [i64; D] = std::array::from_fn(|a| {
+                    let o = (rem % 3) as i64 - 1;
+                    rem /= 3;
+                    c[a] + o
+                });
+                for &q in cells.get(&key).map(Vec::as_slice).unwrap_or(&[]) {
+                    if m.body[q] != m.body[p] && (m.x[q] - x).norm() < min_gap {
+                        return Err(SimError::Overlap {
+                            a: m.bodies[m.body[p] as usize].name.clone(),
+                            b: m.bodies[m.body[q] as usize].name.clone(),
+                            detail: format!(
+                                "particles {p} and {q} are {:.3e} m apart",
+                                (m.x[q] - x).norm()
+                            ),
+                        });
+                    }
+                }
+            }
         }
     }
     Ok(())

@@ -295,7 +295,10 @@ fn blocks_refinement_2d(ctx: &Ctx, out: &mut Outcome) -> Result<()> {
 /// Relative velocity of two FEM bodies' centres of mass along the line joining them (negative:
 /// approaching; ≈ 0: stuck together; positive: separating).
 fn centres_relative_velocity(w: &femp::World<3>) -> f64 {
-    let ((x1, v1), (x2, v2)) = (w.fem[0].centre_of_mass(), w.fem[1].centre_of_mass());
+    let ((x1, v1), (x2, v2)) = (
+        w.bodies.fem[0].centre_of_mass(),
+        w.bodies.fem[1].centre_of_mass(),
+    );
     (v2 - v1).dot(&(x2 - x1).normalize())
 }
 
@@ -636,7 +639,7 @@ fn ramp_3d(ctx: &Ctx, out: &mut Outcome, series: &mut Vec<Series>) -> Result<()>
             let pictures = (iterations == 1 && tau_steps == 1.0 && h == 1.0)
                 .then(|| Pictures::keys("Ramp, N = 1, h = 1", 2).last_only());
             let (r, probes) = ctx.run_scene_probe::<3, (f64, f64)>(&label, &v, pictures, |w| {
-                let b = &w.fem[1];
+                let b = &w.bodies.fem[1];
                 let m: f64 = b.mass.iter().sum();
                 let cx =
                     b.x.iter()
@@ -644,7 +647,7 @@ fn ramp_3d(ctx: &Ctx, out: &mut Outcome, series: &mut Vec<Series>) -> Result<()>
                         .map(|(x, mm)| x[0] * mm)
                         .sum::<f64>()
                         / m;
-                (w.time, cx)
+                (w.clock.time, cx)
             })?;
             let x0 = 1.0; // centre of mass at t = 0
             let (t, x) = *probes.last().expect("steps");

@@ -54,11 +54,12 @@ struct Surfaces {
 
 impl Surfaces {
     fn of(w: &femp::World<2>, spacing: f64) -> Self {
-        let m = w.mpm.as_ref().expect("an MPM ring");
+        let m = w.bodies.mpm.as_ref().expect("an MPM ring");
         let particles = (0..m.x.len())
             .filter(|&p| m.x[p].norm() > 11.99 - 0.75 * spacing && m.x[p][1] > 1.0)
             .collect();
         let outer = w
+            .bodies
             .fem
             .iter()
             .find(|b| b.name == "outer")
@@ -88,8 +89,10 @@ impl Surfaces {
     }
 
     fn distances(&self, w: &femp::World<2>) -> Vec<f64> {
-        let (Some(m), Some(outer)) = (w.mpm.as_ref(), w.fem.iter().find(|b| b.name == "outer"))
-        else {
+        let (Some(m), Some(outer)) = (
+            w.bodies.mpm.as_ref(),
+            w.bodies.fem.iter().find(|b| b.name == "outer"),
+        ) else {
             return Vec::new();
         };
         self.particles
@@ -191,14 +194,14 @@ pub fn run(ctx: &Ctx) -> Result<Outcome> {
                 .filter(|p| p.names.0 == "inner" && p.names.1 == "outer")
                 .map(|p| -p.on_points[1])
                 .sum();
-            let crown = w.mpm.as_ref().map_or(f64::NAN, |m| {
+            let crown = w.bodies.mpm.as_ref().map_or(f64::NAN, |m| {
                 m.x.iter()
                     .filter(|x| x[0].abs() < 0.5)
                     .map(|x| x[1])
                     .fold(f64::NEG_INFINITY, f64::max)
             });
             Sample {
-                u: w.time,
+                u: w.clock.time,
                 force,
                 crown,
                 gap,

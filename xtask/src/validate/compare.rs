@@ -230,7 +230,7 @@ pub fn run(ctx: &Ctx) -> Result<Outcome> {
             });
             let (r, xs) =
                 ctx.run_scene_probe::<2, f64>(&label, &bfemp_scene(h, dt), pictures, |w| {
-                    let m = w.mpm.as_ref().expect("MPM block");
+                    let m = w.bodies.mpm.as_ref().expect("MPM block");
                     com_x(&m.mass, m.x.iter().map(|x| x[0]))
                 })?;
             let s = xs.last().copied().unwrap_or(f64::NAN) - 1.0;
@@ -273,7 +273,7 @@ pub fn run(ctx: &Ctx) -> Result<Outcome> {
                     &explicit_scene(h, dt, aug.clone()),
                     pictures,
                     |w| {
-                        let b = &w.fem[0];
+                        let b = &w.bodies.fem[0];
                         com_x(&b.mass, b.x.iter().map(|x| x[0]))
                     },
                 )?;
@@ -458,7 +458,7 @@ fn impact(ctx: &Ctx, out: &mut Outcome) -> Result<()> {
                     &impact_bfemp(h, dt, integrator),
                     pictures,
                     |w| {
-                        let m = w.mpm.as_ref().expect("MPM block");
+                        let m = w.bodies.mpm.as_ref().expect("MPM block");
                         velocity(&m.mass, &m.v)
                     },
                 )?;
@@ -488,7 +488,7 @@ fn impact(ctx: &Ctx, out: &mut Outcome) -> Result<()> {
                     &label,
                     &impact_explicit(h, dt, aug.clone()),
                     None,
-                    |w| velocity(&w.fem[0].mass, &w.fem[0].v),
+                    |w| velocity(&w.bodies.fem[0].mass, &w.bodies.fem[0].v),
                 )?;
                 record(&mut points, &mut failed, (method, h, dt), r, &vs);
             }

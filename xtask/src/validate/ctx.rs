@@ -171,6 +171,7 @@ impl Ctx {
     pub fn stable_dt(&self, spec: &SceneSpec) -> Result<f64> {
         let world = self.probe(spec)?;
         world
+            .stepper
             .augury()
             .map(|a| a.stable_dt)
             .ok_or_else(|| anyhow::anyhow!("the probe scene is not an augury scene"))

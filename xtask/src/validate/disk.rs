@@ -150,13 +150,13 @@ fn explicit_run(
 ) -> Result<()> {
     // Place the plates from the mesh's extreme vertices, and take Δt from the stability estimate.
     let probe = ctx.probe(&explicit_scene(s, None, 1e-7, cfg.duration, augury))?;
-    let ys = probe.fem[0]
+    let ys = probe.bodies.fem[0]
         .x
         .iter()
         .fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), x| {
             (l.min(x[1]), h.max(x[1]))
         });
-    let stable = probe.augury().map_or(f64::NAN, |a| a.stable_dt);
+    let stable = probe.stepper.augury().map_or(f64::NAN, |a| a.stable_dt);
     let dt = 0.5 * stable;
     let label = format!("disk_{}_s{s}", method.replace(' ', "_"));
     let (r, samples) = ctx.run_scene_keep::<2, Option<(f64, f64)>>(
@@ -173,7 +173,7 @@ fn explicit_run(
             // The fixed plate's reaction (kinematic in the correction; the facet side of the
             // penalty pairs): its vertices lie on the contact line, and the plate has no
             // velocity field of its own for the correction to smooth.
-            let plate = &w.augury()?.system.bodies[1];
+            let plate = &w.stepper.augury()?.system.bodies[1];
             let (a, f) = hertz::moment_width(
                 plate
                     .x

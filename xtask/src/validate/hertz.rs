@@ -120,6 +120,7 @@ pub(super) fn run_variant(
     // Plates d̂ beyond the extreme particles (the paper: "placed d̂ below / above the disk").
     let probe = ctx.probe(&v)?;
     let ys = probe
+        .bodies
         .mpm
         .as_ref()
         .map(|m| m.x.iter().map(|x| x[1]))
@@ -155,7 +156,7 @@ pub(super) fn run_variant(
         label += &format!("_mu{}", var.mu);
     }
     let (r, probes) = ctx.run_scene_probe::<2, Option<Sample>>(&label, &v, pictures, |w| {
-        let mpm = w.mpm.as_ref()?;
+        let mpm = w.bodies.mpm.as_ref()?;
         let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
         for x in &mpm.x {
             if x[1] - plate_y < dhat {

@@ -78,13 +78,13 @@ pub fn run(ctx: &Ctx) -> Result<Outcome> {
                     .then(|| Pictures::keys("MPM box settling on a FEM box, 8 cells across", 3)),
                 |w| {
                     let (mut my, mut m) = (0.0, 0.0);
-                    if let Some(mpm) = &w.mpm {
+                    if let Some(mpm) = &w.bodies.mpm {
                         for (x, mm) in mpm.x.iter().zip(&mpm.mass) {
                             my += x[1] * mm;
                             m += mm;
                         }
                     }
-                    for b in &w.fem {
+                    for b in &w.bodies.fem {
                         for (x, mm) in b.x.iter().zip(&b.mass) {
                             my += x[1] * mm;
                             m += mm;

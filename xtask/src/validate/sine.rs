@@ -105,10 +105,13 @@ pub fn run(ctx: &Ctx) -> Result<Outcome> {
         };
         let (r, probes) =
             ctx.run_scene_keep::<2, _>(label, &scene(fem, h, ppc, dt), Some(pictures), |w| {
-                let m = w.mpm.as_ref().expect("MPM box");
-                let inside = m.x.iter().filter(|x| x[1] >= curve(x[0], w.time)).count();
+                let m = w.bodies.mpm.as_ref().expect("MPM box");
+                let inside =
+                    m.x.iter()
+                        .filter(|x| x[1] >= curve(x[0], w.clock.time))
+                        .count();
                 let top = m.x.iter().map(|x| x[1]).fold(f64::NEG_INFINITY, f64::max);
-                (w.time, inside, top)
+                (w.clock.time, inside, top)
             })?;
         let max_inside = probes.iter().map(|p| p.1).max().unwrap_or(0);
         // Adhesion: after the boundary has lifted off (t ≥ 1.6 s it is ≥ 0.5 m above the rest

@@ -121,14 +121,14 @@ pub fn run(ctx: &Ctx) -> Result<Outcome> {
             &scene(mu, settle, release),
             (mu == 0.1).then(|| Pictures::keys("Box on the slope, μ = 0.1", 3)),
             |w| {
-                let m = w.mpm.as_ref().expect("the box is MPM");
+                let m = w.bodies.mpm.as_ref().expect("the box is MPM");
                 let (p, mass) =
                     m.v.iter()
                         .zip(&m.mass)
                         .fold((nalgebra::Vector2::zeros(), 0.0), |(p, s), (v, mm)| {
                             (p + v * *mm, s + mm)
                         });
-                (w.time, (p[0] * dir[0] + p[1] * dir[1]) / mass)
+                (w.clock.time, (p[0] * dir[0] + p[1] * dir[1]) / mass)
             },
         )?;
         let v: Vec<(f64, f64)> = v

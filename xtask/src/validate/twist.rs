@@ -83,9 +83,9 @@ pub fn run(ctx: &Ctx) -> Result<Outcome> {
         let pictures = (mu == 1.0).then(|| Pictures::keys("μ = 1", 3).gif().up(2));
         let mut top: Option<Top> = None;
         let (r, samples) = ctx.run_scene_keep::<3, (f64, f64)>(&label, &spec, pictures, |w| {
-            let x = &w.mpm.as_ref().expect("the cube is MPM").x;
+            let x = &w.bodies.mpm.as_ref().expect("the cube is MPM").x;
             let a = top.get_or_insert_with(|| Top::of(x, h)).angle(x);
-            (w.time, a)
+            (w.clock.time, a)
         })?;
         let r = match r {
             Ok(r) => r,

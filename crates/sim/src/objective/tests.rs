@@ -7,6 +7,7 @@ use std::path::Path;
 use femp_solver::{Objective, Triplets};
 
 use crate::scene;
+use crate::step::{Parts, StepSetup};
 use crate::world::World;
 
 /// Pseudo-random numbers in [−1, 1] (deterministic).
@@ -25,6 +26,32 @@ fn noise(n: usize, seed: u64) -> Vec<f64> {
 fn world<const D: usize>(json: &str) -> World<D> {
     let s = scene::parse(json, "fd.json", Path::new(".").to_path_buf(), "fd").unwrap();
     World::<D>::build(s).unwrap()
+}
+
+/// A BFEMP world's next step set up (particle-to-grid, unknowns, predictor), as its step does.
+fn setup_of<const D: usize>(w: &mut World<D>) -> StepSetup<D> {
+    let integrator = w.stepper.bfemp().expect("a BFEMP world").integrator;
+    Parts {
+        scene: &w.scene,
+        bodies: &mut w.bodies,
+        clock: &mut w.clock,
+    }
+    .setup(integrator)
+    .unwrap()
+}
+
+/// The incremental potential of `setup`'s step over `w`'s bodies, as the step builds it.
+fn objective_of<'a, const D: usize>(
+    setup: &'a StepSetup<D>,
+    w: &'a World<D>,
+) -> super::StepObjective<'a, D> {
+    let weight = w
+        .stepper
+        .bfemp()
+        .expect("a BFEMP world")
+        .integrator
+        .weight(w.clock.dt);
+    setup.objective(&w.bodies, weight)
 }
 
 /// A 2D scene: an MPM block whose lowest particles are within d̂ (5 mm) of a free FEM block, a second FEM block
@@ -64,8 +91,8 @@ const SCENE_3D: &str = r#"{
 /// with friction lagged at the start. Returns the number of active contact terms.
 fn check_gradient<const D: usize>(json: &str, amplitude: f64) -> usize {
     let mut w = world::<D>(json);
-    let setup = w.setup(w.bfemp().unwrap().integrator).unwrap();
-    let mut obj = setup.objective(&w);
+    let setup = setup_of(&mut w);
+    let mut obj = objective_of(&setup, &w);
     obj.lag_friction(&setup.x0);
     let r = noise(setup.n_dofs, 7);
     let x: Vec<f64> = (0..setup.n_dofs)
@@ -130,9 +157,9 @@ fn gradient_matches_finite_differences_3d() {
 /// inertia, stretched elasticity, gravity, penalties (bodies apart, no contact).
 fn check_hessian<const D: usize>(json: &str) {
     let mut w = world::<D>(json);
-    let setup = w.setup(w.bfemp().unwrap().integrator).unwrap();
+    let setup = setup_of(&mut w);
     let n = setup.n_dofs;
-    let mut obj = setup.objective(&w);
+    let mut obj = objective_of(&setup, &w);
     // A uniform 5 % expansion (every F ≈ 1.05 I, where the neo-Hookean tangent is positive
     // definite and its projection is the identity) plus a small random perturbation.
     let r = noise(n, 11);
@@ -204,9 +231,9 @@ fn hessian_matches_finite_differences_without_contact_3d() {
 /// the other kind of Hessian is asked for (exact, projected, exact again).
 fn check_exact_hessian<const D: usize>(json: &str) {
     let mut w = world::<D>(json);
-    let setup = w.setup(w.bfemp().unwrap().integrator).unwrap();
+    let setup = setup_of(&mut w);
     let n = setup.n_dofs;
-    let mut obj = setup.objective(&w);
+    let mut obj = objective_of(&setup, &w);
     let r = noise(n, 13);
     let x: Vec<f64> = (0..n).map(|d| setup.x0[d] + 1e-4 * r[d]).collect();
     let mut g = vec![0.0; n];
@@ -265,11 +292,11 @@ fn dense(t: &Triplets, n: usize) -> Vec<f64> {
 #[test]
 fn hessian_terms_unchanged_tracks_the_contact_set() {
     let mut w = world::<2>(SCENE_2D);
-    let setup = w.setup(w.bfemp().unwrap().integrator).unwrap();
+    let setup = setup_of(&mut w);
     let n = setup.n_dofs;
     let r = noise(n, 11);
     let x: Vec<f64> = (0..n).map(|d| setup.x0[d] + 1e-4 * r[d]).collect();
-    let mut obj = setup.objective(&w);
+    let mut obj = objective_of(&setup, &w);
     obj.lag_friction(&setup.x0);
     let mut g = vec![0.0; n];
     obj.gradient(&x, &mut g);
@@ -313,12 +340,12 @@ fn hessian_terms_unchanged_tracks_the_contact_set() {
 #[test]
 fn gradient_after_the_hessian_equals_a_fresh_one() {
     let mut w = world::<2>(SCENE_2D);
-    let setup = w.setup(w.bfemp().unwrap().integrator).unwrap();
+    let setup = setup_of(&mut w);
     let n = setup.n_dofs;
     let r = noise(n, 7);
     let x: Vec<f64> = (0..n).map(|d| setup.x0[d] + 1e-4 * r[d]).collect();
     let fresh = |lag_at: &[f64]| {
-        let mut obj = setup.objective(&w);
+        let mut obj = objective_of(&setup, &w);
         obj.lag_friction(lag_at);
         let mut g = vec![0.0; n];
         obj.gradient(&x, &mut g);
@@ -326,7 +353,7 @@ fn gradient_after_the_hessian_equals_a_fresh_one() {
     };
     let bits = |g: &[f64]| g.iter().map(|v| v.to_bits()).collect::<Vec<_>>();
     for exact in [false, true] {
-        let mut obj = setup.objective(&w);
+        let mut obj = objective_of(&setup, &w);
         obj.lag_friction(&setup.x0);
         let mut t = Triplets::default();
         if exact {
@@ -357,13 +384,13 @@ fn gradient_after_the_hessian_equals_a_fresh_one() {
 #[test]
 fn hessian_from_the_gradients_contact_derivatives_equals_a_fresh_one() {
     let mut w = world::<2>(SCENE_2D);
-    let setup = w.setup(w.bfemp().unwrap().integrator).unwrap();
+    let setup = setup_of(&mut w);
     let n = setup.n_dofs;
     let r = noise(n, 5);
     let x: Vec<f64> = (0..n).map(|d| setup.x0[d] + 1e-4 * r[d]).collect();
     let y: Vec<f64> = (0..n).map(|d| setup.x0[d] - 2e-4 * r[d]).collect();
     let fresh = |lag_at: &[f64], at: &[f64]| {
-        let mut obj = setup.objective(&w);
+        let mut obj = objective_of(&setup, &w);
         obj.lag_friction(lag_at);
         let mut t = Triplets::default();
         obj.hessian(at, &mut t);
@@ -375,7 +402,7 @@ fn hessian_from_the_gradients_contact_derivatives_equals_a_fresh_one() {
             assert!((u - v).abs() <= 1e-12 * m, "{what}: entry {k}: {u} vs {v}");
         }
     };
-    let mut obj = setup.objective(&w);
+    let mut obj = objective_of(&setup, &w);
     obj.lag_friction(&setup.x0);
     let mut g = vec![0.0; n];
     obj.gradient(&x, &mut g);
@@ -413,11 +440,11 @@ fn hessian_from_the_gradients_contact_derivatives_equals_a_fresh_one() {
 fn check_contact_only<const D: usize>(json: &str, stretched: &str) {
     // Contact-free and stretched: the elastic terms are what tells the two objectives apart.
     let mut w = world::<D>(stretched);
-    let setup = w.setup(w.bfemp().unwrap().integrator).unwrap();
+    let setup = setup_of(&mut w);
     let n = setup.n_dofs;
     let x: Vec<f64> = (0..n).map(|d| 1.05 * setup.x0[d]).collect();
-    let full = setup.objective(&w).energy(&x);
-    let mut only = setup.objective(&w).contact_only();
+    let full = objective_of(&setup, &w).energy(&x);
+    let mut only = objective_of(&setup, &w).contact_only();
     let e = only.energy(&x);
     let mut g = vec![0.0; n];
     only.gradient(&x, &mut g);
@@ -428,8 +455,12 @@ fn check_contact_only<const D: usize>(json: &str, stretched: &str) {
     // Inertia and gravity alone (no slip penalty in these scenes).
     let (mut inertia, mut g_inertia) = (0.0, vec![0.0; n]);
     for d in 0..n {
-        let (m, r, gr) = (setup.mass[d], x[d] - setup.x_hat[d], w.gravity[d % D]);
-        let wt = w.bfemp().unwrap().integrator.weight(w.dt);
+        let (m, r, gr) = (
+            setup.mass[d],
+            x[d] - setup.x_hat[d],
+            w.bodies.gravity[d % D],
+        );
+        let wt = w.stepper.bfemp().unwrap().integrator.weight(w.clock.dt);
         inertia += 0.5 * m * r * r - wt * m * gr * x[d];
         g_inertia[d] = m * r - wt * m * gr;
     }
@@ -447,11 +478,11 @@ fn check_contact_only<const D: usize>(json: &str, stretched: &str) {
 
     // With contact terms: derivatives against finite differences.
     let mut w = world::<D>(json);
-    let setup = w.setup(w.bfemp().unwrap().integrator).unwrap();
+    let setup = setup_of(&mut w);
     let n = setup.n_dofs;
     let r = noise(n, 17);
     let x: Vec<f64> = (0..n).map(|d| setup.x0[d] + 1e-4 * r[d]).collect();
-    let mut obj = setup.objective(&w).contact_only();
+    let mut obj = objective_of(&setup, &w).contact_only();
     obj.prefer_exact = true;
     let g = assert_gradient_matches_energy(&mut obj, &x);
     assert!(obj.last_contacts.0 > 0, "the scene must have contact terms");
@@ -461,12 +492,12 @@ fn check_contact_only<const D: usize>(json: &str, stretched: &str) {
     // The barrier's share: contact-only gradient − inertia's = full gradient − the rest.
     let mut gc = vec![0.0; n];
     obj.contact_gradient(&x, &mut gc);
-    let wt = w.bfemp().unwrap().integrator.weight(w.dt);
+    let wt = w.stepper.bfemp().unwrap().integrator.weight(w.clock.dt);
     let cmax = gc.iter().fold(0.0f64, |a, v| a.max(v.abs()));
     assert!(cmax > 0.0);
     for d in 0..n {
         let inertia =
-            setup.mass[d] * (x[d] - setup.x_hat[d]) - wt * setup.mass[d] * w.gravity[d % D];
+            setup.mass[d] * (x[d] - setup.x_hat[d]) - wt * setup.mass[d] * w.bodies.gravity[d % D];
         assert!(
             (g[d] - inertia - gc[d]).abs() <= 1e-9 * (cmax + g[d].abs()),
             "dof {d}: {} vs {}",
@@ -506,14 +537,14 @@ fn check_friction_fixed_point<const D: usize>(json: &str, below: f64) {
     use crate::step::friction_loop;
     use femp_solver::{Newton, NewtonParams};
     let mut w = world::<D>(json);
-    let setup = w.setup(w.bfemp().unwrap().integrator).unwrap();
+    let setup = setup_of(&mut w);
     let tol = 1e-6;
     let params = NewtonParams {
         tolerance: tol,
-        dt: w.dt,
+        dt: w.clock.dt,
         ..Default::default()
     };
-    let mut obj = setup.objective(&w);
+    let mut obj = objective_of(&setup, &w);
     let mut newton = Newton::new();
     let mut x = setup.x0.clone();
     let mut report = crate::report::StepReport::default();
@@ -541,7 +572,7 @@ fn check_friction_fixed_point<const D: usize>(json: &str, below: f64) {
     newton
         .minimize_to(&mut obj, &mut again, problem.0, problem.1, &params)
         .unwrap();
-    let moved = obj.lag_distance(&again) / w.dt;
+    let moved = obj.lag_distance(&again) / w.clock.dt;
     assert!(
         moved < 2.0 * tol,
         "{D}D, update below {below}: a further friction iteration moves a point by {moved:e} m/s"
@@ -570,9 +601,10 @@ fn lightest_node(mass: &[f64], n_grid: usize) -> usize {
 #[test]
 fn lag_distance_is_measured_on_particles_and_vertices() {
     let mut w = world::<2>(SCENE_2D);
-    let setup = w.setup(w.bfemp().unwrap().integrator).unwrap();
+    let setup = setup_of(&mut w);
     let (n, n_grid) = (setup.n_dofs, setup.n_grid);
     let lightest_particle = w
+        .bodies
         .mpm
         .as_ref()
         .unwrap()
@@ -580,7 +612,7 @@ fn lag_distance_is_measured_on_particles_and_vertices() {
         .iter()
         .copied()
         .fold(f64::INFINITY, f64::min);
-    let mut obj = setup.objective(&w);
+    let mut obj = objective_of(&setup, &w);
     obj.lag_friction(&setup.x0);
     assert_eq!(obj.lag_distance(&setup.x0), 0.0);
     let shifted = |dofs: &dyn Fn(usize) -> f64| -> Vec<f64> {
@@ -616,9 +648,9 @@ fn lag_distance_is_measured_on_particles_and_vertices() {
 #[test]
 fn increment_size_on_points() {
     let mut w = world::<2>(SCENE_2D);
-    let setup = w.setup(w.bfemp().unwrap().integrator).unwrap();
+    let setup = setup_of(&mut w);
     let (n, n_grid) = (setup.n_dofs, setup.n_grid);
-    let mut obj = setup.objective(&w);
+    let mut obj = objective_of(&setup, &w);
     let x = setup.x0.clone();
     let zero = vec![0.0; n];
     assert_eq!(obj.increment_size(&x, &zero), None, "off by default");

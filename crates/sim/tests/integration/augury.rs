@@ -36,7 +36,7 @@ fn quiet(max_steps: Option<usize>) -> RunOptions {
 
 /// Velocity of the centre of mass of FEM body `k` along x.
 fn com_vx(w: &World<2>, k: usize) -> f64 {
-    let b = &w.fem[k];
+    let b = &w.bodies.fem[k];
     let m: f64 = b.mass.iter().sum();
     b.v.iter()
         .zip(&b.mass)
@@ -59,7 +59,7 @@ fn scene_run_matches_the_library_reference_scene() {
         let mut v = fixture();
         v["augury"]["model"] = json!(name);
         let probe = World::<2>::build(parse(&v).unwrap()).unwrap();
-        let dt = 0.5 * probe.augury().unwrap().stable_dt;
+        let dt = 0.5 * probe.stepper.augury().unwrap().stable_dt;
         v["time"]["dt"] = json!(dt);
         v["time"]["duration"] = json!(dt * reference.steps as f64);
         let dir = tempfile::tempdir().unwrap();
@@ -170,7 +170,7 @@ fn a_prescribed_plate_pushes_a_block() {
     let mut world_plate_x = Vec::new();
     let mut block_v = 0.0;
     let r = femp::run::run_with::<2>(parse(&v).unwrap(), dir.path(), &quiet(None), |w, _| {
-        world_plate_x.push((w.time, w.fem[0].x[0][0]));
+        world_plate_x.push((w.clock.time, w.bodies.fem[0].x[0][0]));
         block_v = com_vx(w, 1);
     })
     .unwrap();
@@ -404,7 +404,10 @@ fn blocks_3d_separate_with_the_iteration_and_pic_sticks_without() {
         let dir = tempfile::tempdir().unwrap();
         let mut rel = Vec::new();
         femp::run::run_with::<3>(s, dir.path(), &quiet(None), |w, _| {
-            let ((x1, v1), (x2, v2)) = (w.fem[0].centre_of_mass(), w.fem[1].centre_of_mass());
+            let ((x1, v1), (x2, v2)) = (
+                w.bodies.fem[0].centre_of_mass(),
+                w.bodies.fem[1].centre_of_mass(),
+            );
             rel.push((v2 - v1).dot(&(x2 - x1).normalize()));
         })
         .unwrap();

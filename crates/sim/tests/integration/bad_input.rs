@@ -471,20 +471,28 @@ fn the_size_estimate_matches_what_is_built() {
         let (particles, vertices, elements) = match s.spec.dimension {
             2 => {
                 let w = World::<2>::build(s).unwrap();
-                let p = w.mpm.as_ref().map_or(0, |m| m.x.len());
+                let p = w.bodies.mpm.as_ref().map_or(0, |m| m.x.len());
                 (
                     p,
-                    w.fem.iter().map(|b| b.x.len()).sum::<usize>(),
-                    w.fem.iter().map(|b| b.mesh.num_cells()).sum::<usize>(),
+                    w.bodies.fem.iter().map(|b| b.x.len()).sum::<usize>(),
+                    w.bodies
+                        .fem
+                        .iter()
+                        .map(|b| b.mesh.num_cells())
+                        .sum::<usize>(),
                 )
             }
             _ => {
                 let w = World::<3>::build(s).unwrap();
-                let p = w.mpm.as_ref().map_or(0, |m| m.x.len());
+                let p = w.bodies.mpm.as_ref().map_or(0, |m| m.x.len());
                 (
                     p,
-                    w.fem.iter().map(|b| b.x.len()).sum::<usize>(),
-                    w.fem.iter().map(|b| b.mesh.num_cells()).sum::<usize>(),
+                    w.bodies.fem.iter().map(|b| b.x.len()).sum::<usize>(),
+                    w.bodies
+                        .fem
+                        .iter()
+                        .map(|b| b.mesh.num_cells())
+                        .sum::<usize>(),
                 )
             }
         };
@@ -685,10 +693,14 @@ fn the_penetration_metric_counts_crossing_boundaries() {
     let s = scene::parse(&v.to_string(), "m.json", ".".into(), "m").unwrap();
     let mut w = World::<2>::build(s).unwrap();
     assert_eq!(w.measure().penetrations, 0);
-    for x in &mut w.fem[1].x {
+    for x in &mut w.bodies.fem[1].x {
         x[1] -= 3.0;
     }
-    let inside_vertices = femp::world::inside_elements(&w.fem[1].x, &w.fem[0].mesh, &w.fem[0].x);
+    let inside_vertices = femp::world::inside_elements(
+        &w.bodies.fem[1].x,
+        &w.bodies.fem[0].mesh,
+        &w.bodies.fem[0].x,
+    );
     assert!(inside_vertices.is_empty());
     assert_eq!(w.fem_crossings(), 4);
     assert_eq!(w.measure().penetrations, 4);

@@ -421,14 +421,14 @@ fn contact_forces_in_the_metrics_are_the_impulse_of_every_step() {
             match d {
                 2 => femp::World::<2>::build(s)
                     .unwrap()
-                    .mpm
+                    .bodies.mpm
                     .unwrap()
                     .mass
                     .iter()
                     .sum(),
                 _ => femp::World::<3>::build(s)
                     .unwrap()
-                    .mpm
+                    .bodies.mpm
                     .unwrap()
                     .mass
                     .iter()
@@ -491,8 +491,8 @@ fn per_point_contact_forces_add_up_to_the_body_forces() {
         },
         |w, m| {
             let particles: nalgebra::Vector2<f64> =
-                w.mpm.as_ref().unwrap().contact_force.iter().sum();
-            let plate: nalgebra::Vector2<f64> = w.fem[0].contact_force.iter().sum();
+                w.bodies.mpm.as_ref().unwrap().contact_force.iter().sum();
+            let plate: nalgebra::Vector2<f64> = w.bodies.fem[0].contact_force.iter().sum();
             for a in 0..2 {
                 let scale = m.contact_forces[0][a].abs().max(1e-9);
                 assert!((particles[a] - m.contact_forces[0][a]).abs() <= 1e-9 * scale);

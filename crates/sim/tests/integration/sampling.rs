@@ -27,7 +27,7 @@ fn polar_disk_has_the_exact_area_and_a_round_boundary() {
         2,
     )
     .unwrap();
-    let m = w.mpm.as_ref().unwrap();
+    let m = w.bodies.mpm.as_ref().unwrap();
     let area: f64 = m.volume.iter().sum();
     assert!((area - std::f64::consts::PI).abs() < 1e-12, "area {area}");
     // Spacing h/3; 60 rings of width 1/60; the outer one at 1 − 1/120.
@@ -44,7 +44,7 @@ fn polar_disk_has_the_exact_area_and_a_round_boundary() {
         2,
     )
     .unwrap();
-    let lm = l.mpm.as_ref().unwrap();
+    let lm = l.bodies.mpm.as_ref().unwrap();
     let y_min = lm.x.iter().map(|x| x[1]).fold(f64::INFINITY, f64::min);
     let row = lm.x.iter().filter(|x| (x[1] - y_min).abs() < 1e-12).count();
     assert!(row > 5, "lattice bottom row has {row} particles");
@@ -57,7 +57,7 @@ fn polar_ring_has_the_exact_area() {
         2,
     )
     .unwrap();
-    let area: f64 = w.mpm.as_ref().unwrap().volume.iter().sum();
+    let area: f64 = w.bodies.mpm.as_ref().unwrap().volume.iter().sum();
     let exact = std::f64::consts::PI * (0.8f64.powi(2) - 0.5f64.powi(2));
     assert!((area - exact).abs() < 1e-12 * exact, "{area} vs {exact}");
 }

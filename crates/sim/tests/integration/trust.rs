@@ -164,10 +164,10 @@ fn an_interrupt_stops_a_step_inside_its_newton_iterations() {
         w.step(),
         Err(SimError::Interrupted { step: 0, .. })
     ));
-    assert_eq!(w.step, 0);
+    assert_eq!(w.clock.step, 0);
     flag.store(false, std::sync::atomic::Ordering::Relaxed);
     assert!(w.step().is_ok());
-    assert_eq!(w.step, 1);
+    assert_eq!(w.clock.step, 1);
 
     let p = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../fixtures/scenes/augury_blocks.json");
     let mut w = World::<2>::build(scene::load(&p).unwrap()).unwrap();
@@ -552,7 +552,7 @@ fn overlapping_augury_bodies_are_counted_and_warned_about() {
 /// and every FEM vertex's position and velocity.
 fn state_bits(w: &World<2>) -> Vec<u64> {
     let mut out = Vec::new();
-    if let Some(m) = &w.mpm {
+    if let Some(m) = &w.bodies.mpm {
         for q in 0..m.x.len() {
             out.extend(
                 m.x[q]
@@ -563,7 +563,7 @@ fn state_bits(w: &World<2>) -> Vec<u64> {
             );
         }
     }
-    for b in &w.fem {
+    for b in &w.bodies.fem {
         out.extend(
             b.x.iter()
                 .chain(&b.v)
@@ -596,7 +596,7 @@ fn any_number_of_threads_gives_the_same_bits() {
             .install(|| {
                 let s = scene::parse(&text, "d.json", ".".into(), "d").unwrap();
                 let mut w = World::<2>::build(s).unwrap();
-                assert!(w.mpm.as_ref().unwrap().x.len() >= 5000);
+                assert!(w.bodies.mpm.as_ref().unwrap().x.len() >= 5000);
                 let mut energies = Vec::new();
                 for _ in 0..10 {
                     let r = w.step().unwrap();

@@ -207,17 +207,22 @@ fn face_distance<const D: usize>(p: &SVector<f64, D>, f: &[SVector<f64, D>]) -> 
 fn run_checked<const D: usize>(json: &str) -> (usize, usize, Option<String>) {
     let s = scene::parse(json, "test.json", Path::new(".").to_path_buf(), "test").unwrap();
     let mut world = World::<D>::build(s).unwrap();
-    let steps = femp::run::step_count(world.scene.spec.time.duration, world.dt);
+    let steps = femp::run::step_count(world.scene.spec.time.duration, world.clock.dt);
     let mut most = 1;
     for k in 0..steps {
-        let p0 = world.mpm.as_ref().unwrap().x.clone();
-        let b0 = world.fem[0].x.clone();
+        let p0 = world.bodies.mpm.as_ref().unwrap().x.clone();
+        let b0 = world.bodies.fem[0].x.clone();
         match world.step() {
             Ok(r) => {
                 most = most.max(r.substeps);
-                let p1 = &world.mpm.as_ref().unwrap().x;
-                let (deepest, through) =
-                    paths_through(&p0, p1, &b0, &world.fem[0].x, world.fem[0].mesh.cells());
+                let p1 = &world.bodies.mpm.as_ref().unwrap().x;
+                let (deepest, through) = paths_through(
+                    &p0,
+                    p1,
+                    &b0,
+                    &world.bodies.fem[0].x,
+                    world.bodies.fem[0].mesh.cells(),
+                );
                 assert_eq!(
                     through, 0,
                     "step {k}: {through} particle paths passed through the body, up to {deepest:e} m deep (femp's own check said {} entered, {:e} deep)",
@@ -254,7 +259,7 @@ fn an_mpm_disk_does_not_pass_through_a_free_fem_disk_in_one_step() {
     let one = json.replace(r#""time""#, r#""solver": { "max_substeps": 1 }, "time""#);
     let s = scene::parse(&one, "test.json", Path::new(".").to_path_buf(), "test").unwrap();
     let mut world = World::<2>::build(s).unwrap();
-    let x0 = world.mpm.as_ref().unwrap().x.clone();
+    let x0 = world.bodies.mpm.as_ref().unwrap().x.clone();
     let e = world.step().unwrap_err().to_string();
     assert!(
         e.contains("passed through a body")
@@ -263,8 +268,8 @@ fn an_mpm_disk_does_not_pass_through_a_free_fem_disk_in_one_step() {
         "{e}"
     );
     // ... and the world is back at the start of the step.
-    assert_eq!(world.mpm.as_ref().unwrap().x, x0);
-    assert_eq!(world.step, 0);
+    assert_eq!(world.bodies.mpm.as_ref().unwrap().x, x0);
+    assert_eq!(world.clock.step, 0);
 }
 
 /// The sweep of the issue, 2D: FEM disk resolution × speed × Δt × free / pinned / prescribed.
