@@ -11,7 +11,13 @@
 //! cargo xtask bench --only twist --steps 10
 //! cargo xtask bench --friction-update-below 0 0.01   # friction between solves / in Newton too
 //! cargo xtask bench --newton-test nodes points         # Newton's test on grid nodes / particles
+//! cargo xtask bench --set solver.reuse_hessian_below=0,0.1,1   # any scene field, each value
 //! ```
+//!
+//! `--set KEY=V1,V2,…` (repeatable) sets a field of the scene file by its dotted path (array
+//! elements by index: `contact.pairs.0.kappa`) to each value in turn, parsed as JSON (a bare
+//! word is a string); several `--set` run every combination. The scene is validated as
+//! `femp run` would, so a wrong path or value is the scene's own error.
 //!
 //! `block_on_plate_3d` runs its first `--steps` steps (default 2: the first lands the block, the
 //! second is in contact); the twist runs to the window's start (t = 1.0 s, where the turn begins)
@@ -51,7 +57,7 @@ const CASES: [Case; 2] = [
 
 const USAGE: &str = "usage: cargo xtask bench [--only plate|twist …] [--steps N] \
                      [--ordering auto|amd|nested_dissection …] [--friction-update-below V …] \
-                     [--newton-test nodes|points …]";
+                     [--newton-test nodes|points …] [--set KEY=V1,V2,… …]";
 
 /// Entry point (arguments after `bench`).
 pub fn main(args: &[String]) -> Result<()> {
@@ -60,6 +66,7 @@ pub fn main(args: &[String]) -> Result<()> {
     let mut steps: Option<usize> = None;
     let mut below: Vec<f64> = Vec::new();
     let mut tests: Vec<NewtonTestSpec> = Vec::new();
+    let mut sets: Vec<(String, Vec<serde_json::Value>)> = Vec::new();
     let mut it = args.iter().peekable();
     while let Some(a) = it.next() {
         match a.as_str() {
@@ -105,6 +112,21 @@ pub fn main(args: &[String]) -> Result<()> {
                     });
                 }
             }
+            "--set" => {
+                let kv = it.next().context(USAGE)?;
+                let (key, values) = kv
+                    .split_once('=')
+                    .filter(|(k, v)| !k.is_empty() && !v.is_empty())
+                    .with_context(|| format!("`--set {kv}` is not KEY=V1,V2,…\n{USAGE}"))?;
+                let values = values
+                    .split(',')
+                    .map(|v| {
+                        serde_json::from_str(v)
+                            .unwrap_or_else(|_| serde_json::Value::String(v.to_string()))
+                    })
+                    .collect();
+                sets.push((key.to_string(), values));
+            }
             "-h" | "--help" => {
                 println!("{USAGE}");
                 return Ok(());
@@ -117,9 +139,10 @@ pub fn main(args: &[String]) -> Result<()> {
     }
     let root = super::validate::workspace_root();
     println!(
-        "| case | ordering | friction update below | Newton test | step | t (s) | Newton it. | friction it. | friction converged | contact terms | wall (s) | assembly | symbolic | numeric | solve | line search |"
+        "| case | ordering | friction update below | Newton test | set | step | t (s) | Newton it. | friction it. | friction converged | contact terms | reused Hessians | wall (s) | assembly | symbolic | numeric | solve | line search |"
     );
-    println!("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|");
+    println!("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|");
+    let combinations = combinations(&sets);
     for case in CASES
         .iter()
         .filter(|c| only.is_empty() || only.iter().any(|o| o == c.name))
@@ -127,7 +150,14 @@ pub fn main(args: &[String]) -> Result<()> {
         for &ordering in &orderings {
             for b in variants(&below) {
                 for t in variants(&tests) {
-                    run_case(&root, case, (ordering, b, t), steps.unwrap_or(case.steps))?;
+                    for set in &combinations {
+                        run_case(
+                            &root,
+                            case,
+                            (ordering, b, t, set),
+                            steps.unwrap_or(case.steps),
+                        )?;
+                    }
                 }
             }
         }
@@ -144,14 +174,75 @@ fn variants<T: Copy>(asked: &[T]) -> Vec<Option<T>> {
     }
 }
 
+/// Scene fields set by `--set`: (dotted path, value).
+type Settings = [(String, serde_json::Value)];
+
+/// Every combination of one value per `--set` key (one empty combination without `--set`).
+fn combinations(
+    sets: &[(String, Vec<serde_json::Value>)],
+) -> Vec<Vec<(String, serde_json::Value)>> {
+    let mut out = vec![Vec::new()];
+    for (key, values) in sets {
+        out = out
+            .iter()
+            .flat_map(|c: &Vec<(String, serde_json::Value)>| {
+                values.iter().map(move |v| {
+                    let mut c = c.clone();
+                    c.push((key.clone(), v.clone()));
+                    c
+                })
+            })
+            .collect();
+    }
+    out
+}
+
+/// The scene file with each `(dotted path, value)` set; objects on the way are created, an
+/// index past an array's end or a path through a non-container is an error.
+fn scene_with(path: &Path, set: &Settings) -> Result<scene::Scene> {
+    if set.is_empty() {
+        return Ok(scene::load(path)?);
+    }
+    let text = std::fs::read_to_string(path).with_context(|| path.display().to_string())?;
+    let mut json: serde_json::Value = serde_json::from_str(&text)?;
+    for (key, value) in set {
+        let mut at = &mut json;
+        for part in key.split('.') {
+            at = match at {
+                serde_json::Value::Object(m) => m
+                    .entry(part)
+                    .or_insert_with(|| serde_json::Value::Object(Default::default())),
+                serde_json::Value::Array(a) => part
+                    .parse::<usize>()
+                    .ok()
+                    .and_then(|k| a.get_mut(k))
+                    .with_context(|| format!("--set {key}: no element `{part}`"))?,
+                _ => bail!("--set {key}: `{part}` is inside a value, not an object or array"),
+            };
+        }
+        *at = value.clone();
+    }
+    let stem = path
+        .file_stem()
+        .map_or_else(|| "scene".to_string(), |s| s.to_string_lossy().into_owned());
+    let file = format!("{} (with --set)", path.display());
+    let base = path.parent().map(Path::to_path_buf).unwrap_or_default();
+    Ok(scene::parse(&json.to_string(), &file, base, &stem)?)
+}
+
 fn run_case(
     root: &Path,
     case: &Case,
-    (ordering, below, test): (OrderingSpec, Option<f64>, Option<NewtonTestSpec>),
+    (ordering, below, test, set): (OrderingSpec, Option<f64>, Option<NewtonTestSpec>, &Settings),
     steps: usize,
 ) -> Result<()> {
     let dir = root.join("fixtures/scenes");
-    let mut s = scene::load(&dir.join(case.file))?;
+    let mut s = scene_with(&dir.join(case.file), set)?;
+    let set = set
+        .iter()
+        .map(|(k, v)| format!("{k}={v}"))
+        .collect::<Vec<_>>()
+        .join(" ");
     s.spec.solver.ordering = ordering;
     if let Some(b) = below {
         s.spec.solver.friction_update_below = b;
@@ -174,7 +265,7 @@ fn run_case(
         wall += w;
         let st = &r.stats;
         println!(
-            "| {} | {:?} | {below} | {test:?} | {} | {:.3} | {} | {} | {} | {} | {w:.2} | {:.2} | {:.2} | {:.2} | {:.2} | {:.2} |",
+            "| {} | {:?} | {below} | {test:?} | {set} | {} | {:.3} | {} | {} | {} | {} | {} | {w:.2} | {:.2} | {:.2} | {:.2} | {:.2} | {:.2} |",
             case.name,
             ordering,
             world.clock.step,
@@ -183,6 +274,7 @@ fn run_case(
             r.friction_iterations,
             if r.friction_converged { "yes" } else { "no" },
             r.contact_terms,
+            st.reused_hessians,
             st.assembly_s,
             st.symbolic_s,
             st.numeric_s,
@@ -191,7 +283,7 @@ fn run_case(
         );
     }
     println!(
-        "| {} | {:?} | {below} | {test:?} | mean | | {:.1} | | | | {:.2} | | | | | |",
+        "| {} | {:?} | {below} | {test:?} | {set} | mean | | {:.1} | | | | | {:.2} | | | | | |",
         case.name,
         ordering,
         newton as f64 / steps as f64,

@@ -6,11 +6,13 @@
 //!   non-zero if any failed.
 //! * `validate` — the papers' experiments (`validate/mod.rs`).
 //! * `bench` — what a 3D BFEMP step costs, per ordering (`bench.rs`).
+//! * `same A B` — whether two output trees hold the same results, wall times aside (`same.rs`).
 //! * `compact-png FILE…` — re-encode PNGs in place as the published reports' images are (at most
 //!   256 colours, `validate/compact.rs`): for images committed under `docs/` by hand.
 
 mod bench;
 mod ci;
+mod same;
 #[cfg(test)]
 mod structure;
 mod validate;
@@ -31,6 +33,7 @@ fn run() -> anyhow::Result<()> {
         Some("ci") => ci::run(),
         Some("validate") => validate::main(&args[1..]),
         Some("bench") => bench::main(&args[1..]),
+        Some("same") => same::main(&args[1..]),
         Some("compact-png") => {
             anyhow::ensure!(args.len() > 1, "compact-png needs PNG files\n\n{USAGE}");
             for f in &args[1..] {
@@ -54,4 +57,7 @@ tasks:
   validate  the papers' experiments: [--quick | --full] [--only NAME…] [--out DIR]
   bench     3D step cost: Newton iterations and seconds per step on block_on_plate_3d and a
             §6.7 twist window [--only plate|twist] [--steps N] [--ordering auto|amd|nested_dissection …]
+            [--set KEY=V1,V2,… …]
+  same A B  whether two output trees (validate or run --out) hold the same results, wall times
+            aside: what a behaviour-preserving change is checked with
   compact-png FILE…  re-encode PNGs in place as the reports' images (≤ 256 colours)";
