@@ -4,24 +4,14 @@
 //! ([`Stepper`], chosen once here), with the checks a scene must pass before it runs (sizes,
 //! overlaps).
 
-use femp_contact::friction::FrictionParams;
-use femp_contact::{
-    BarrierHessian, BoundaryTopology, ContactPotential, LogBarrier, particle_weight,
-};
-use femp_fem::{Boundary, ElasticBody, LinearElastic, Material, NeoHookean, lumped_masses};
-use femp_kernels::{Grid, Kernel};
-use nalgebra::{SMatrix, SVector};
+use nalgebra::SVector;
 
-use crate::build::{sample_shape, transform_fn};
 pub use crate::clock::Clock;
-use crate::error::{SimError, invalid};
-use crate::motion::{Motion, angular_components};
+use crate::error::SimError;
+use crate::motion::Motion;
 use crate::overlap::{fem_pair_overlap, points_inside};
 use crate::report::StepReport;
-use crate::scene::mesh::fem_mesh;
-use crate::scene::{
-    BarrierHessianSpec, BodySpec, MaterialSpec, ModelSpec, Scene, TransferSpec, VertexSelector,
-};
+use crate::scene::{BodySpec, Scene};
 pub use crate::step::Bfemp;
 pub use crate::stepper::Stepper;
 use crate::sweep::{Positions, SweptReport};
@@ -44,38 +34,6 @@ pub struct World<const D: usize> {
     /// Once set, the step in progress stops before its next Newton iteration
     /// ([`World::set_interrupt`]).
     pub(crate) interrupt: Option<std::sync::Arc<std::sync::atomic::AtomicBool>>,
-}
-
-fn make_material(m: &MaterialSpec) -> Result<Material, SimError> {
-    let e = |e: femp_fem::FemError| invalid("material", e.to_string());
-    Ok(match m.model {
-        ModelSpec::NeoHookean => {
-            Material::NeoHookean(NeoHookean::from_young_poisson(m.youngs_modulus, m.nu).map_err(e)?)
-        }
-        ModelSpec::Linear => {
-            Material::Linear(LinearElastic::from_young_poisson(m.youngs_modulus, m.nu).map_err(e)?)
-        }
-    })
-}
-
-/// `v + ω × (x − c)` (2D: ω about z).
-fn rigid_velocity<const D: usize>(
-    v: &SVector<f64, D>,
-    w: &[f64],
-    x: &SVector<f64, D>,
-    c: &SVector<f64, D>,
-) -> SVector<f64, D> {
-    let r = x - c;
-    let mut out = *v;
-    if D == 2 {
-        out[0] -= w[0] * r[1];
-        out[1] += w[0] * r[0];
-    } else {
-        out[0] += w[1] * r[D - 1] - w[2] * r[1];
-        out[1] += w[2] * r[0] - w[0] * r[D - 1];
-        out[D - 1] += w[0] * r[1] - w[1] * r[0];
-    }
-    out
 }
 
 impl<const D: usize> World<D> {
@@ -116,317 +74,25 @@ impl<const D: usize> World<D> {
         for (i, b) in spec.bodies.iter().enumerate() {
             let f = format!("bodies[{i}]");
             match b {
-                BodySpec::Mpm(crate::scene::spec::MpmBody {
-                    name,
-                    shape,
-                    particles_per_cell,
-                    material,
-                    velocity,
-                    angular_velocity,
-                }) => {
+                BodySpec::Mpm(body) => {
                     let m = spec.mpm.as_ref().expect("validated: mpm section present");
-                    let state = mpm.get_or_insert_with(|| {
-                        let grid = Grid::new(m.grid_spacing, SVector::zeros(), Kernel::Quadratic)
-                            .expect("validated spacing");
-                        Mpm {
-                            stencils: grid.stencils(&[]).expect("empty stencils"),
-                            grid,
-                            transfer: match m.transfer {
-                                TransferSpec::Apic => Transfer::Apic,
-                                TransferSpec::Pic => Transfer::Pic,
-                                TransferSpec::Flip => Transfer::Flip(m.flip_ratio),
-                            },
-                            x: Vec::new(),
-                            v: Vec::new(),
-                            b: Vec::new(),
-                            f: Vec::new(),
-                            a: Vec::new(),
-                            mass: Vec::new(),
-                            volume: Vec::new(),
-                            weight: Vec::new(),
-                            body: Vec::new(),
-                            bodies: Vec::new(),
-                            contact_force: Vec::new(),
-                        }
-                    });
-                    let ppc = particles_per_cell.unwrap_or(if D == 2 { 4 } else { 8 });
-                    let per_axis = (ppc as f64).powf(1.0 / D as f64).round() as usize;
-                    let samples = sample_shape::<D>(
-                        shape,
+                    let state = mpm.get_or_insert_with(|| crate::build::mpm::empty(m));
+                    let k = crate::build::mpm::add_body(
+                        state,
+                        body,
                         m.grid_spacing,
-                        per_axis,
                         &scene.base_dir,
-                        &format!("{f}.shape"),
+                        &f,
                     )?;
-                    let material_m = make_material(material)?;
-                    let start = state.x.len();
-                    let n = samples.x.len();
-                    let total_mass: f64 = samples.volume.iter().sum::<f64>() * material.rho;
-                    let com: SVector<f64, D> = samples
-                        .x
-                        .iter()
-                        .zip(&samples.volume)
-                        .map(|(x, v)| x * (v * material.rho))
-                        .sum::<SVector<f64, D>>()
-                        / total_mass;
-                    let v0 = velocity
-                        .as_deref()
-                        .map_or_else(SVector::zeros, SVector::from_column_slice);
-                    let w = angular_components(angular_velocity, D);
-                    let dp = m.grid_spacing * m.grid_spacing * 0.25;
-                    let l = {
-                        // Velocity gradient of the rigid rotation, for B = L D_p.
-                        let mut l = SMatrix::<f64, D, D>::zeros();
-                        for a in 0..D {
-                            let mut ea = SVector::<f64, D>::zeros();
-                            ea[a] = 1.0;
-                            let col = rigid_velocity(&SVector::zeros(), &w, &ea, &SVector::zeros());
-                            l.set_column(a, &col);
-                        }
-                        l
-                    };
-                    for k in 0..n {
-                        let x = samples.x[k];
-                        state.x.push(x);
-                        state.v.push(rigid_velocity(&v0, &w, &x, &com));
-                        state.b.push(l * dp);
-                        state.f.push(SMatrix::identity());
-                        state.a.push(SVector::zeros());
-                        state.mass.push(samples.volume[k] * material.rho);
-                        state.volume.push(samples.volume[k]);
-                        state.weight.push(particle_weight::<D>(samples.volume[k]));
-                        state.body.push(state.bodies.len() as u16);
-                        state.contact_force.push(SVector::zeros());
-                    }
-                    slot.push((true, state.bodies.len()));
-                    state.bodies.push(MpmBody {
-                        name: name.clone(),
-                        material: material_m,
-                        range: (start, start + n),
-                    });
+                    slot.push((true, k));
                 }
-                BodySpec::Fem(crate::scene::spec::FemBody {
-                    name,
-                    mesh,
-                    transform,
-                    material,
-                    velocity,
-                    angular_velocity,
-                    prescribed,
-                }) => {
-                    let mut m = fem_mesh::<D>(mesh, &scene.base_dir, &format!("{f}.mesh"))?;
-                    if let Some(t) = transform {
-                        let tf = transform_fn::<D>(t);
-                        m = m
-                            .mapped(tf)
-                            .map_err(|e| invalid(format!("{f}.transform"), e.to_string()))?;
-                    }
-                    let mat = make_material(material)?;
-                    let elastic = ElasticBody::new(&m, mat)
-                        .map_err(|e| invalid(format!("{f}.mesh"), e.to_string()))?;
-                    let masses = lumped_masses(&m, material.rho)
-                        .map_err(|e| invalid(format!("{f}.material.rho"), e.to_string()))?;
-                    let x = m.vertices().to_vec();
-                    let total: f64 = masses.iter().sum();
-                    let com: SVector<f64, D> = x
-                        .iter()
-                        .zip(&masses)
-                        .map(|(p, mm)| p * *mm)
-                        .sum::<SVector<f64, D>>()
-                        / total;
-                    let v0 = velocity
-                        .as_deref()
-                        .map_or_else(SVector::zeros, SVector::from_column_slice);
-                    let w = angular_components(angular_velocity, D);
-                    let v: Vec<_> = x.iter().map(|p| rigid_velocity(&v0, &w, p, &com)).collect();
-                    let mut fixed = vec![false; x.len()];
-                    let mut sets = Vec::new();
-                    for (k, p) in prescribed.iter().enumerate() {
-                        let pf = format!("{f}.prescribed[{k}].vertices");
-                        let ids: Vec<usize> = match &p.vertices {
-                            VertexSelector::All => (0..x.len()).collect(),
-                            VertexSelector::Below { axis, value } => {
-                                (0..x.len()).filter(|&i| x[i][*axis] < *value).collect()
-                            }
-                            VertexSelector::Above { axis, value } => {
-                                (0..x.len()).filter(|&i| x[i][*axis] > *value).collect()
-                            }
-                            VertexSelector::List(l) => {
-                                if let Some(&bad) = l.iter().find(|&&i| i >= x.len()) {
-                                    return Err(invalid(
-                                        pf,
-                                        format!(
-                                            "vertex {bad} does not exist (the mesh has {})",
-                                            x.len()
-                                        ),
-                                    ));
-                                }
-                                l.clone()
-                            }
-                        };
-                        if ids.is_empty() {
-                            return Err(invalid(pf, "selects no vertex"));
-                        }
-                        let centroid =
-                            ids.iter().map(|&i| x[i]).sum::<SVector<f64, D>>() / ids.len() as f64;
-                        for &i in &ids {
-                            fixed[i] = true;
-                        }
-                        sets.push((ids, Motion::new(&p.motion, centroid)));
-                    }
-                    let fully = fixed.iter().all(|&f| f);
-                    let boundary = Boundary::of(&m);
-                    let facets: Vec<[u32; 3]> = boundary
-                        .facets()
-                        .iter()
-                        .map(|f| {
-                            [
-                                f[0] as u32,
-                                f[1] as u32,
-                                if D == 3 { f[2] as u32 } else { 0 },
-                            ]
-                        })
-                        .collect();
-                    // Lumped boundary measure per boundary vertex: 1/D of each incident facet.
-                    let mut vw = vec![0.0; m.num_vertices()];
-                    for fi in 0..boundary.facets().len() {
-                        let a = boundary.facet_normal(fi, &x).norm();
-                        for &vtx in &boundary.facets()[fi][..D] {
-                            vw[vtx] += a / D as f64;
-                        }
-                    }
-                    let vertex_weight = boundary.vertices().iter().map(|&i| vw[i]).collect();
+                BodySpec::Fem(body) => {
                     slot.push((false, fem.len()));
-                    fem.push(FemBody {
-                        name: name.clone(),
-                        elastic,
-                        material: mat,
-                        a: vec![SVector::zeros(); x.len()],
-                        v,
-                        initial: x.clone(),
-                        x,
-                        mass: masses,
-                        prescribed: sets,
-                        fixed,
-                        fully_prescribed: fully,
-                        boundary,
-                        edges: crate::overlap::boundary_edges::<D>(&facets),
-                        facets,
-                        vertex_weight,
-                        contact_force: vec![SVector::zeros(); m.num_vertices()],
-                        mesh: m,
-                    });
+                    fem.push(crate::build::fem::body(body, &scene.base_dir, &f)?);
                 }
             }
         }
-        // Contact pairs.
-        let mut pairs = Vec::new();
-        if let Some(c) = &spec.contact {
-            let names: Vec<&str> = spec.bodies.iter().map(BodySpec::name).collect();
-            for i in 0..names.len() {
-                for j in i + 1..names.len() {
-                    let (si, sj) = (slot[i], slot[j]);
-                    if si.0 && sj.0 {
-                        continue; // MPM–MPM: through the shared grid.
-                    }
-                    let over = c.pairs.iter().find(|p| {
-                        (p.bodies[0] == names[i] && p.bodies[1] == names[j])
-                            || (p.bodies[0] == names[j] && p.bodies[1] == names[i])
-                    });
-                    if over.is_some_and(|p| !p.enabled) {
-                        continue;
-                    }
-                    let dhat = over.and_then(|p| p.dhat).unwrap_or(c.dhat);
-                    // A barrier reaching across a whole body is no contact gap: every point
-                    // would be a candidate of every facet (one Newton iteration of a 1 m cube
-                    // with d̂ = 10 m took minutes). Refuse d̂ not below the smaller body's size.
-                    let extent = |(is_mpm, k): (bool, usize)| -> f64 {
-                        let pts: &[SVector<f64, D>] = if is_mpm {
-                            match mpm.as_ref() {
-                                Some(m) => &m.x[m.bodies[k].range.0..m.bodies[k].range.1],
-                                None => &[],
-                            }
-                        } else {
-                            &fem[k].x
-                        };
-                        crate::overlap::bounding_box(pts)
-                            .map_or(f64::INFINITY, |(lo, hi)| (hi - lo).max())
-                    };
-                    let (ei, ej) = (extent(si), extent(sj));
-                    let (size, small) = if ei <= ej {
-                        (ei, names[i])
-                    } else {
-                        (ej, names[j])
-                    };
-                    if size > 0.0 && dhat >= size {
-                        let field = match c.pairs.iter().position(|p| {
-                            p.dhat.is_some() && over.is_some_and(|o| std::ptr::eq(o, p))
-                        }) {
-                            Some(k) => format!("contact.pairs[{k}].dhat"),
-                            None => "contact.dhat".to_string(),
-                        };
-                        return Err(invalid(
-                            field,
-                            format!(
-                                "d̂ = {dhat} m between `{}` and `{}` is not smaller than `{small}` ({size:.3e} m across): the barrier would act between points farther apart than the body is large; d̂ is a small gap (the papers use about 1e-3 of a body's size)",
-                                names[i], names[j]
-                            ),
-                        ));
-                    }
-                    let kappa = over.and_then(|p| p.kappa).unwrap_or(c.kappa);
-                    let mu = over.and_then(|p| p.friction).unwrap_or(c.friction);
-                    let eps_v = over.and_then(|p| p.eps_v).unwrap_or(c.eps_v);
-                    let barrier = LogBarrier::new(dhat, kappa)
-                        .map_err(|e| invalid("contact", e.to_string()))?;
-                    let friction = FrictionParams::new(mu, eps_v, spec.time.dt)
-                        .map_err(|e| invalid("contact", e.to_string()))?;
-                    let mut add = |points: Points,
-                                   facets_of: usize,
-                                   names: (String, String)|
-                     -> Result<(), SimError> {
-                        let body = &fem[facets_of];
-                        let topo =
-                            BoundaryTopology::<D>::new(&body.facets, body.mesh.num_vertices())
-                                .map_err(|e| {
-                                    invalid(format!("bodies `{}`", body.name), e.to_string())
-                                })?;
-                        pairs.push(Pair {
-                            names,
-                            points,
-                            facets_of,
-                            potential: ContactPotential::new(barrier, topo).with_hessian(
-                                match c.hessian {
-                                    BarrierHessianSpec::GaussNewton => BarrierHessian::GaussNewton,
-                                    BarrierHessianSpec::Projected => BarrierHessian::Projected,
-                                },
-                            ),
-                            friction,
-                        });
-                        Ok(())
-                    };
-                    let (ni, nj) = (names[i].to_string(), names[j].to_string());
-                    match (si, sj) {
-                        ((true, a), (false, b)) => {
-                            let range = mpm.as_ref().map(|m| m.bodies[a].range).unwrap_or((0, 0));
-                            add(Points::Mpm { range }, b, (ni, nj))?;
-                        }
-                        ((false, a), (true, b)) => {
-                            let range = mpm.as_ref().map(|m| m.bodies[b].range).unwrap_or((0, 0));
-                            add(Points::Mpm { range }, a, (nj, ni))?;
-                        }
-                        ((false, a), (false, b)) => {
-                            if fem[a].fully_prescribed && fem[b].fully_prescribed {
-                                continue;
-                            }
-                            add(Points::Fem { body: a }, b, (ni.clone(), nj.clone()))?;
-                            add(Points::Fem { body: b }, a, (nj, ni))?;
-                        }
-                        // MPM–MPM: skipped above (through the shared grid).
-                        ((true, _), (true, _)) => {}
-                    }
-                }
-            }
-        }
+        let pairs = crate::build::pairs::contact_pairs(spec, &slot, mpm.as_ref(), &fem)?;
         let boundaries = spec
             .boundaries
             .iter()

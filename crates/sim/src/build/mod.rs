@@ -1,14 +1,52 @@
-//! Building bodies from scene specs: particle sampling of MPM shapes, FEM meshes, transforms.
+//! Building bodies from scene specs: particle sampling of MPM shapes, transforms, materials and
+//! rigid initial velocities here; an MPM body's particles in `mpm`, a FEM body in `fem`, the
+//! contact pairs in `pairs`.
+
+pub(crate) mod fem;
+pub(crate) mod mpm;
+pub(crate) mod pairs;
 
 use std::path::Path;
 
-use femp_fem::Mesh;
 use femp_fem::mesh::gmsh;
+use femp_fem::{LinearElastic, Material, Mesh, NeoHookean};
 use nalgebra::{SMatrix, SVector, Vector3};
 
-use crate::error::SimError;
+use crate::error::{SimError, invalid};
 use crate::motion::rotation;
-use crate::scene::{Sampling, ShapeSpec, TransformSpec};
+use crate::scene::{MaterialSpec, ModelSpec, Sampling, ShapeSpec, TransformSpec};
+
+pub(crate) fn make_material(m: &MaterialSpec) -> Result<Material, SimError> {
+    let e = |e: femp_fem::FemError| invalid("material", e.to_string());
+    Ok(match m.model {
+        ModelSpec::NeoHookean => {
+            Material::NeoHookean(NeoHookean::from_young_poisson(m.youngs_modulus, m.nu).map_err(e)?)
+        }
+        ModelSpec::Linear => {
+            Material::Linear(LinearElastic::from_young_poisson(m.youngs_modulus, m.nu).map_err(e)?)
+        }
+    })
+}
+
+/// `v + ω × (x − c)` (2D: ω about z).
+pub(crate) fn rigid_velocity<const D: usize>(
+    v: &SVector<f64, D>,
+    w: &[f64],
+    x: &SVector<f64, D>,
+    c: &SVector<f64, D>,
+) -> SVector<f64, D> {
+    let r = x - c;
+    let mut out = *v;
+    if D == 2 {
+        out[0] -= w[0] * r[1];
+        out[1] += w[0] * r[0];
+    } else {
+        out[0] += w[1] * r[D - 1] - w[2] * r[1];
+        out[1] += w[2] * r[0] - w[0] * r[D - 1];
+        out[D - 1] += w[0] * r[1] - w[1] * r[0];
+    }
+    out
+}
 
 /// Particles sampled in a shape: positions and volumes.
 #[derive(Clone, Debug, Default)]
