@@ -14,7 +14,7 @@ use crate::clock::Clock;
 use crate::error::SimError;
 use crate::objective::{Dofs, Inertia, Penalty, StepObjective};
 use crate::report::StepReport;
-use crate::scene::spec::{LinearSpec, NewtonTestSpec, OrderingSpec, ProjectionSpec};
+use crate::scene::spec::{LinearSpec, NewtonTestSpec, OrderingSpec, ProjectionSpec, SolverSpec};
 use crate::scene::{BoundaryCondition, IntegratorSpec, Scene};
 
 /// The state of the implicit (BFEMP) method.
@@ -68,6 +68,16 @@ struct SavedMpm<const D: usize> {
     f: Vec<SMatrix<f64, D, D>>,
     a: Vec<SVector<f64, D>>,
     contact_force: Vec<SVector<f64, D>>,
+}
+
+/// The grid of a step after particle-to-grid (empty without MPM bodies): active nodes, their
+/// mass, velocity, start-of-step acceleration (Newmark) and position.
+struct GridState<const D: usize> {
+    n_grid: usize,
+    grid_m: Vec<f64>,
+    grid_v: Vec<SVector<f64, D>>,
+    grid_a: Vec<SVector<f64, D>>,
+    grid_x: Vec<SVector<f64, D>>,
 }
 
 /// The unknowns of one step and what they start from (see `Parts::setup`).
@@ -194,163 +204,156 @@ impl Bfemp {
         Ok(Ok(last))
     }
 
-    /// One BFEMP step with `integrator`.
+    /// One BFEMP step with `integrator` (its straight paths not checked): steps 1–2 in
+    /// `Parts::setup`, the contact-stabilised predictor's projection, the friction loop around
+    /// the minimisation ([`Bfemp::minimize`]), the contact forces and the acceleration carried
+    /// to the next step ([`contact_outcome`]), then steps 4–5 in `Parts::finish`.
     fn solve<const D: usize>(
         &mut self,
         w: &mut Parts<'_, D>,
         integrator: Integrator,
     ) -> Result<StepReport, SimError> {
         let dt = w.clock.dt;
-        let t1 = w.clock.time + dt;
-        let fail = |clock: &Clock, message: String| SimError::StepFailed {
-            step: clock.step,
-            time: clock.time,
-            message,
-        };
-
         let clock = std::time::Instant::now();
-        let StepSetup {
-            n_grid,
-            grid_v,
-            grid_x,
-            fem_offset,
-            n_dofs,
-            mass,
-            x0,
-            v0,
-            a0,
-            fixed,
-            target,
-            penalties,
-            mut x_hat,
-            transfers_s,
-        } = w.setup(integrator)?;
-        let clock_setup = clock.elapsed().as_secs_f64() - transfers_s;
+        let mut s = w.setup(integrator)?;
+        let clock_setup = clock.elapsed().as_secs_f64() - s.transfers_s;
         let clock = std::time::Instant::now();
-        let contact_stabilized = self.contact_stabilized;
         // 3. The friction loop around the minimisation.
-        let params = NewtonParams {
-            tolerance: w.scene.spec.solver.tolerance,
-            dt,
-            max_iterations: w.scene.spec.solver.max_newton_iterations,
-            ordering: match w.scene.spec.solver.ordering {
-                // Measured (docs/performance.md, `cargo xtask bench`): nested dissection as fast
-                // as AMD at the twist's 5k 3D unknowns, 1.6× faster per contact step at
-                // block_on_plate_3d's 26k.
-                OrderingSpec::Auto if D == 3 => Ordering::NestedDissection { block: D },
-                OrderingSpec::Auto | OrderingSpec::Amd => Ordering::Amd,
-                OrderingSpec::NestedDissection => Ordering::NestedDissection { block: D },
-            },
-            threads: Threads::Auto,
-            hessian: match w.scene.spec.solver.projection {
-                ProjectionSpec::Always => HessianStrategy::Projected,
-                ProjectionSpec::WhenIndefinite => HessianStrategy::ExactWhenDefinite,
-            },
-            linear: match w.scene.spec.solver.linear {
-                LinearSpec::Cholesky => LinearSolver::Cholesky,
-                LinearSpec::Pcg => LinearSolver::Pcg {
-                    rtol: w.scene.spec.solver.pcg_rtol,
-                    max_iterations: w.scene.spec.solver.pcg_max_iterations,
-                    forcing: match w.scene.spec.solver.pcg_rtol_max {
-                        Some(max) => Forcing::Adaptive { max },
-                        None => Forcing::Fixed,
-                    },
-                },
-            },
-            reuse_hessian_below: w.scene.spec.solver.reuse_hessian_below,
-            ..Default::default()
-        };
+        let params = newton_params::<D>(&w.scene.spec.solver, dt);
         let weight = integrator.weight(dt);
-        let dofs = Dofs {
-            n_grid,
-            fem_offset: fem_offset.clone(),
-            n: n_dofs,
-        };
-        let any_friction = w.bodies.pairs.iter().any(|p| p.friction.mu > 0.0);
         let point_test = w.scene.spec.solver.newton_test == NewtonTestSpec::Points;
+        let any_friction = w.bodies.pairs.iter().any(|p| p.friction.mu > 0.0);
         let mut report = StepReport {
             friction_converged: true,
-            transfers_s,
+            transfers_s: s.transfers_s,
             ..Default::default()
         };
-        if contact_stabilized && !w.bodies.pairs.is_empty() {
-            // Contact-stabilised Newmark, the predictor step: x_p = argmin ½‖x − (xⁿ + Δt vⁿ)‖²_M
-            // + w B(x) (prescribed DOFs at their targets), and x̂ = x_p + Δt²/4 aⁿ.
-            let mut raw = vec![0.0; n_dofs];
-            Integrator::BackwardEuler.predictor(dt, &x0, &v0, &a0, &mut raw);
-            let mut xp = x0.clone();
-            let mut proj = StepObjective::new(
-                w.bodies.mpm.as_ref(),
-                &w.bodies.fem,
-                &w.bodies.pairs,
-                dofs.clone(),
-                Inertia {
-                    mass: &mass,
-                    x_hat: &raw,
-                    gravity: SVector::zeros(),
-                    penalties: &[],
-                },
-                &x0,
-                weight,
-            )
-            .contact_only();
-            proj.point_test = point_test;
-            // Where the predictor is reached along a feasible path and no barrier term is active
-            // there, it is the projection's minimiser (the objective is 0 there and nowhere
-            // negative): Newmark's predictor stays as it is, bit for bit.
-            let at_raw = start_at_predictor(&mut proj, &x0, &fixed, &target, &raw, &mut xp);
-            if !at_raw || proj.contact_summary(&xp).0 > 0 {
-                let stats = self
-                    .projection
-                    .minimize_to(&mut proj, &mut xp, &fixed, &target, &params)
-                    .map_err(|e| match e {
-                        femp_solver::SolveError::Interrupted { .. } => SimError::Interrupted {
-                            step: w.clock.step,
-                            time: w.clock.time,
-                        },
-                        e => SimError::StepFailed {
-                            step: w.clock.step,
-                            time: w.clock.time,
-                            message: format!("{e} (contact-stabilised predictor)"),
-                        },
-                    })?;
-                report.newton_iterations += stats.iterations;
-                report.stats += &stats;
-                for d in 0..n_dofs {
-                    if !fixed[d] {
-                        x_hat[d] += xp[d] - raw[d];
-                    }
-                }
-            }
-            report.objective.add(&proj.timing);
+        if self.contact_stabilized && !w.bodies.pairs.is_empty() {
+            self.project_predictor(w, &mut s, &params, (weight, point_test), &mut report)?;
         }
-        let mut x = x0.clone();
+        let mut x = s.x0.clone();
         // Start the fixed DOFs where they are; Newton moves them to their targets.
-        let mpm_ref = w.bodies.mpm.as_ref();
-        let mut obj = StepObjective::new(
-            mpm_ref,
+        let mut obj = s.objective(w.bodies, weight);
+        obj.point_test = point_test;
+        let _ = start_at_predictor(&mut obj, &s.x0, &s.fixed, &s.target, &s.x_hat, &mut x);
+        report.setup_s = clock_setup + clock.elapsed().as_secs_f64();
+        self.minimize(
+            (w.scene, w.clock, any_friction),
+            &mut obj,
+            &mut x,
+            &s,
+            &params,
+            &mut report,
+        )?;
+        let outcome = contact_outcome(
+            &mut obj,
+            w.bodies,
+            &x,
+            &s,
+            (integrator, self.contact_stabilized, weight),
+            &mut report,
+        );
+        report.objective.add(&obj.timing);
+        drop(obj);
+        if let Some(m) = w.bodies.mpm.as_mut() {
+            m.contact_force = outcome.on_particles;
+        }
+        for (body, f) in w.bodies.fem.iter_mut().zip(outcome.on_vertices) {
+            body.contact_force = f;
+        }
+        if x.iter().any(|v| !v.is_finite()) {
+            return Err(SimError::StepFailed {
+                step: w.clock.step,
+                time: w.clock.time,
+                message: "the solution contains non-finite positions".into(),
+            });
+        }
+        w.finish(integrator, &s, &x, &outcome.carried, &mut report)?;
+        Ok(report)
+    }
+
+    /// Contact-stabilised Newmark, the predictor step: `x_p = argmin ½‖x − (xⁿ + Δt vⁿ)‖²_M +
+    /// w B(x)` (prescribed DOFs at their targets), and `x̂ = x_p + Δt²/4 aⁿ` (`s.x_hat` moved by
+    /// `x_p` minus the free-flight predictor).
+    fn project_predictor<const D: usize>(
+        &mut self,
+        w: &Parts<'_, D>,
+        s: &mut StepSetup<D>,
+        params: &NewtonParams,
+        (weight, point_test): (f64, bool),
+        report: &mut StepReport,
+    ) -> Result<(), SimError> {
+        let mut raw = vec![0.0; s.n_dofs];
+        Integrator::BackwardEuler.predictor(w.clock.dt, &s.x0, &s.v0, &s.a0, &mut raw);
+        let mut xp = s.x0.clone();
+        let mut proj = StepObjective::new(
+            w.bodies.mpm.as_ref(),
             &w.bodies.fem,
             &w.bodies.pairs,
-            dofs,
+            s.dofs(),
             Inertia {
-                mass: &mass,
-                x_hat: &x_hat,
-                gravity: w.bodies.gravity,
-                penalties: &penalties,
+                mass: &s.mass,
+                x_hat: &raw,
+                gravity: SVector::zeros(),
+                penalties: &[],
             },
-            &x0,
+            &s.x0,
             weight,
-        );
-        obj.point_test = point_test;
-        let _ = start_at_predictor(&mut obj, &x0, &fixed, &target, &x_hat, &mut x);
-        report.setup_s = clock_setup + clock.elapsed().as_secs_f64();
+        )
+        .contact_only();
+        proj.point_test = point_test;
+        // Where the predictor is reached along a feasible path and no barrier term is active
+        // there, it is the projection's minimiser (the objective is 0 there and nowhere
+        // negative): Newmark's predictor stays as it is, bit for bit.
+        let at_raw = start_at_predictor(&mut proj, &s.x0, &s.fixed, &s.target, &raw, &mut xp);
+        if !at_raw || proj.contact_summary(&xp).0 > 0 {
+            let stats = self
+                .projection
+                .minimize_to(&mut proj, &mut xp, &s.fixed, &s.target, params)
+                .map_err(|e| match e {
+                    femp_solver::SolveError::Interrupted { .. } => SimError::Interrupted {
+                        step: w.clock.step,
+                        time: w.clock.time,
+                    },
+                    e => SimError::StepFailed {
+                        step: w.clock.step,
+                        time: w.clock.time,
+                        message: format!("{e} (contact-stabilised predictor)"),
+                    },
+                })?;
+            report.newton_iterations += stats.iterations;
+            report.stats += &stats;
+            for d in 0..s.n_dofs {
+                if !s.fixed[d] {
+                    s.x_hat[d] += xp[d] - raw[d];
+                }
+            }
+        }
+        report.objective.add(&proj.timing);
+        Ok(())
+    }
+
+    /// The friction loop around the minimisation of `obj` from `x` ([`friction_loop`]); if it
+    /// fails and `solver.retry_other_projection` is on, solved again from the same start with
+    /// the other Hessian strategy (where one stalls the other often does not), the failed
+    /// attempt's work counted in the report.
+    fn minimize<const D: usize>(
+        &mut self,
+        (scene, clock, any_friction): (&Scene, &Clock, bool),
+        obj: &mut StepObjective<'_, D>,
+        x: &mut Vec<f64>,
+        s: &StepSetup<D>,
+        params: &NewtonParams,
+        report: &mut StepReport,
+    ) -> Result<(), SimError> {
+        let solver = &scene.spec.solver;
         let max_fric = if any_friction {
-            w.scene.spec.solver.max_friction_iterations
+            solver.max_friction_iterations
         } else {
             1
         };
-        let relag_below = w.scene.spec.solver.friction_update_below;
-        let (step, time) = (w.clock.step, w.clock.time);
+        let relag_below = solver.friction_update_below;
+        let (step, time) = (clock.step, clock.time);
         let failed = |(e, j): (femp_solver::SolveError, usize)| match e {
             femp_solver::SolveError::Interrupted { .. } => SimError::Interrupted { step, time },
             e => SimError::StepFailed {
@@ -375,22 +378,19 @@ impl Bfemp {
                 &mut self.newton,
                 obj,
                 x,
-                &x0,
-                (&fixed, &target),
+                &s.x0,
+                (&s.fixed, &s.target),
                 params,
                 (any_friction, max_fric, relag_below),
                 report,
             )
         };
-        match solve(&mut obj, &mut x, &params, &mut report) {
-            Ok(()) => {}
+        match solve(obj, x, params, report) {
+            Ok(()) => Ok(()),
             Err(first)
-                if w.scene.spec.solver.retry_other_projection
+                if solver.retry_other_projection
                     && !matches!(first.0, femp_solver::SolveError::Interrupted { .. }) =>
             {
-                // Solve the step again from its start with the other Hessian strategy
-                // (`solver.retry_other_projection`): where one stalls the other often does not.
-                // The failed attempt's work counts in the step's statistics.
                 if let Some(stats) = first.0.stats() {
                     report.newton_iterations += stats.iterations;
                     report.stats += stats;
@@ -402,12 +402,12 @@ impl Bfemp {
                 };
                 let retry = NewtonParams {
                     hessian: other,
-                    ..params
+                    ..*params
                 };
                 x.copy_from_slice(&start);
                 report.friction_converged = true;
                 report.retried = Some(first.to_string());
-                solve(&mut obj, &mut x, &retry, &mut report).map_err(|e| match failed(e) {
+                solve(obj, x, &retry, report).map_err(|e| match failed(e) {
                     SimError::StepFailed {
                         step,
                         time,
@@ -424,120 +424,178 @@ impl Bfemp {
                         ),
                     },
                     e => e,
-                })?;
+                })
             }
-            Err(e) => return Err(failed(e)),
+            Err(e) => Err(failed(e)),
         }
-        let (nterms, dmin) = obj.contact_summary(&x);
-        let pad = |v: &SVector<f64, D>| std::array::from_fn(|a| if a < D { v[a] } else { 0.0 });
-        let mut on_particles =
-            vec![SVector::zeros(); w.bodies.mpm.as_ref().map_or(0, |m| m.x.len())];
-        let mut on_vertices: Vec<Vec<SVector<f64, D>>> = w
-            .bodies
-            .fem
-            .iter()
-            .map(|b| vec![SVector::zeros(); b.x.len()])
-            .collect();
-        report.pair_forces = obj
-            .pair_forces(&x, &mut on_particles, &mut on_vertices)
-            .iter()
-            .map(|[b, f]| [pad(b), pad(f)])
-            .collect();
-        report.contact_terms = nterms;
-        report.min_distance = dmin;
-        // The contact terms' part of the new acceleration, −M⁻¹∇(B + D)(x) (the step's
-        // minimality: M(x − x̂) = −w∇(Ψ + B + D) − ∇P + w M g): what plain Newmark carries to
-        // the next step besides the slip penalties' part; contact-stabilised Newmark carries
-        // neither contact part.
-        let needs_acc = integrator.needs_acceleration();
-        let mut carried = vec![0.0; if needs_acc { n_dofs } else { 0 }];
-        if needs_acc && nterms > 0 && !contact_stabilized {
-            obj.contact_gradient(&x, &mut carried);
-            for d in 0..n_dofs {
-                carried[d] = if fixed[d] || mass[d] <= 0.0 {
-                    0.0
-                } else {
-                    -carried[d] / (weight * mass[d])
-                };
-            }
+    }
+}
+
+/// What the contact terms leave at a step's solution: the contact force on each particle and
+/// FEM vertex, and the acceleration carried to the next step.
+struct ContactOutcome<const D: usize> {
+    on_particles: Vec<SVector<f64, D>>,
+    on_vertices: Vec<Vec<SVector<f64, D>>>,
+    /// Per DOF (empty if the integrator carries no acceleration).
+    carried: Vec<f64>,
+}
+
+/// The contact forces of `obj` at the solution `x` (per pair into the report, with the number
+/// of contact terms and the smallest distance) and the acceleration carried to the next step.
+fn contact_outcome<const D: usize>(
+    obj: &mut StepObjective<'_, D>,
+    bodies: &Bodies<D>,
+    x: &[f64],
+    s: &StepSetup<D>,
+    (integrator, contact_stabilized, weight): (Integrator, bool, f64),
+    report: &mut StepReport,
+) -> ContactOutcome<D> {
+    let (nterms, dmin) = obj.contact_summary(x);
+    let pad = |v: &SVector<f64, D>| std::array::from_fn(|a| if a < D { v[a] } else { 0.0 });
+    let mut on_particles = vec![SVector::zeros(); bodies.mpm.as_ref().map_or(0, |m| m.x.len())];
+    let mut on_vertices: Vec<Vec<SVector<f64, D>>> = bodies
+        .fem
+        .iter()
+        .map(|b| vec![SVector::zeros(); b.x.len()])
+        .collect();
+    report.pair_forces = obj
+        .pair_forces(x, &mut on_particles, &mut on_vertices)
+        .iter()
+        .map(|[b, f]| [pad(b), pad(f)])
+        .collect();
+    report.contact_terms = nterms;
+    report.min_distance = dmin;
+    // The contact terms' part of the new acceleration, −M⁻¹∇(B + D)(x) (the step's
+    // minimality: M(x − x̂) = −w∇(Ψ + B + D) − ∇P + w M g): what plain Newmark carries to
+    // the next step besides the slip penalties' part; contact-stabilised Newmark carries
+    // neither contact part.
+    let (n_dofs, fixed, mass) = (s.n_dofs, &s.fixed, &s.mass);
+    let needs_acc = integrator.needs_acceleration();
+    let mut carried = vec![0.0; if needs_acc { n_dofs } else { 0 }];
+    if needs_acc && nterms > 0 && !contact_stabilized {
+        obj.contact_gradient(x, &mut carried);
+        for d in 0..n_dofs {
+            carried[d] = if fixed[d] || mass[d] <= 0.0 {
+                0.0
+            } else {
+                -carried[d] / (weight * mass[d])
+            };
         }
-        if needs_acc {
-            for p in &penalties {
-                let (d, gp) = (p.node * D, p.gradient(&x));
-                for a in 0..D {
-                    if !fixed[d + a] && mass[d + a] > 0.0 {
-                        carried[d + a] -= gp[a] / (weight * mass[d + a]);
-                    }
+    }
+    if needs_acc {
+        for p in &s.penalties {
+            let (d, gp) = (p.node * D, p.gradient(x));
+            for a in 0..D {
+                if !fixed[d + a] && mass[d + a] > 0.0 {
+                    carried[d + a] -= gp[a] / (weight * mass[d + a]);
                 }
             }
         }
-        report.objective.add(&obj.timing);
-        drop(obj);
-        if let Some(m) = w.bodies.mpm.as_mut() {
-            m.contact_force = on_particles;
-        }
-        for (body, f) in w.bodies.fem.iter_mut().zip(on_vertices) {
-            body.contact_force = f;
-        }
-        if x.iter().any(|v| !v.is_finite()) {
-            return Err(fail(
-                w.clock,
-                "the solution contains non-finite positions".into(),
-            ));
-        }
+    }
+    ContactOutcome {
+        on_particles,
+        on_vertices,
+        carried,
+    }
+}
 
+/// The Newton parameters of the scene's solver settings for a step of `dt`.
+fn newton_params<const D: usize>(solver: &SolverSpec, dt: f64) -> NewtonParams {
+    NewtonParams {
+        tolerance: solver.tolerance,
+        dt,
+        max_iterations: solver.max_newton_iterations,
+        ordering: match solver.ordering {
+            // Measured (docs/performance.md, `cargo xtask bench`): nested dissection as fast
+            // as AMD at the twist's 5k 3D unknowns, 1.6× faster per contact step at
+            // block_on_plate_3d's 26k.
+            OrderingSpec::Auto if D == 3 => Ordering::NestedDissection { block: D },
+            OrderingSpec::Auto | OrderingSpec::Amd => Ordering::Amd,
+            OrderingSpec::NestedDissection => Ordering::NestedDissection { block: D },
+        },
+        threads: Threads::Auto,
+        hessian: match solver.projection {
+            ProjectionSpec::Always => HessianStrategy::Projected,
+            ProjectionSpec::WhenIndefinite => HessianStrategy::ExactWhenDefinite,
+        },
+        linear: match solver.linear {
+            LinearSpec::Cholesky => LinearSolver::Cholesky,
+            LinearSpec::Pcg => LinearSolver::Pcg {
+                rtol: solver.pcg_rtol,
+                max_iterations: solver.pcg_max_iterations,
+                forcing: match solver.pcg_rtol_max {
+                    Some(max) => Forcing::Adaptive { max },
+                    None => Forcing::Fixed,
+                },
+            },
+        },
+        reuse_hessian_below: solver.reuse_hessian_below,
+        ..Default::default()
+    }
+}
+
+impl<const D: usize> Parts<'_, D> {
+    /// Steps 4–5 of a time step from the solution `x`: velocities and accelerations,
+    /// grid-to-particle and advection (with the `carried` acceleration interpolated to the
+    /// particles), the FEM vertices' new state, and the clock one step on.
+    fn finish(
+        &mut self,
+        integrator: Integrator,
+        s: &StepSetup<D>,
+        x: &[f64],
+        carried: &[f64],
+        report: &mut StepReport,
+    ) -> Result<(), SimError> {
+        let (dt, n_grid) = (self.clock.dt, s.n_grid);
+        let needs_acc = integrator.needs_acceleration();
+        let failed = |clock: &Clock, message: String| SimError::StepFailed {
+            step: clock.step,
+            time: clock.time,
+            message,
+        };
         // 4. Velocities and accelerations.
-        let mut v1 = v0.clone();
-        let mut a1 = a0.clone();
-        integrator.update(dt, &x, &x_hat, &mut v1, &mut a1);
+        let mut v1 = s.v0.clone();
+        let mut a1 = s.a0.clone();
+        integrator.update(dt, x, &s.x_hat, &mut v1, &mut a1);
 
         // 5. Grid-to-particle and advection.
         let clock = std::time::Instant::now();
-        if let Some(m) = w.bodies.mpm.as_mut() {
+        if let Some(m) = self.bodies.mpm.as_mut() {
             let st = &m.stencils;
             let gv1: Vec<SVector<f64, D>> = (0..n_grid)
                 .map(|i| SVector::from_column_slice(&v1[i * D..i * D + D]))
                 .collect();
             let gu: Vec<SVector<f64, D>> = (0..n_grid)
-                .map(|i| SVector::from_column_slice(&x[i * D..i * D + D]) - grid_x[i])
+                .map(|i| SVector::from_column_slice(&x[i * D..i * D + D]) - s.grid_x[i])
                 .collect();
             let res = match m.transfer {
                 Transfer::Apic => transfer::g2p_apic(st, &gv1, Some(&gu), &mut m.v, &mut m.b),
                 Transfer::Pic => transfer::g2p_pic(st, &gv1, &mut m.v),
-                Transfer::Flip(r) => transfer::g2p_flip(st, &gv1, &grid_v, r, &mut m.v),
+                Transfer::Flip(r) => transfer::g2p_flip(st, &gv1, &s.grid_v, r, &mut m.v),
             };
             res.and_then(|_| transfer::advect(st, &gu, &mut m.x, Some(&mut m.f)))
-                .map_err(|e| SimError::StepFailed {
-                    step: w.clock.step,
-                    time: w.clock.time,
-                    message: e.to_string(),
-                })?;
+                .map_err(|e| failed(self.clock, e.to_string()))?;
             if needs_acc {
                 let carried: Vec<SVector<f64, D>> = (0..n_grid)
                     .map(|i| SVector::from_column_slice(&carried[i * D..i * D + D]))
                     .collect();
-                transfer::interpolate(st, &carried, &mut m.a).map_err(|e| {
-                    SimError::StepFailed {
-                        step: w.clock.step,
-                        time: w.clock.time,
-                        message: e.to_string(),
-                    }
-                })?;
+                transfer::interpolate(st, &carried, &mut m.a)
+                    .map_err(|e| failed(self.clock, e.to_string()))?;
             }
             if let Some(bad) =
                 m.f.iter()
                     .position(|f: &SMatrix<f64, D, D>| !(femp_fem::linalg::det(f) > 0.0))
             {
-                return Err(fail(
-                    w.clock,
+                return Err(failed(
+                    self.clock,
                     format!("particle {bad} inverted (det F ≤ 0)"),
                 ));
             }
         }
         report.transfers_s += clock.elapsed().as_secs_f64();
-        for (b, body) in w.bodies.fem.iter_mut().enumerate() {
+        for (b, body) in self.bodies.fem.iter_mut().enumerate() {
             for vtx in 0..body.x.len() {
-                let d = fem_offset[b] + vtx * D;
+                let d = s.fem_offset[b] + vtx * D;
                 body.x[vtx] = SVector::from_column_slice(&x[d..d + D]);
                 body.v[vtx] = SVector::from_column_slice(&v1[d..d + D]);
                 if needs_acc {
@@ -545,9 +603,9 @@ impl Bfemp {
                 }
             }
         }
-        w.clock.time = t1;
-        w.clock.step += 1;
-        Ok(report)
+        self.clock.time += dt;
+        self.clock.step += 1;
+        Ok(())
     }
 }
 
@@ -610,65 +668,13 @@ impl<const D: usize> Parts<'_, D> {
         let t1 = self.clock.time + dt;
         // 1. Particle-to-grid.
         let clock = std::time::Instant::now();
-        let mut n_grid = 0;
-        let mut grid_m: Vec<f64> = Vec::new();
-        let mut grid_v: Vec<SVector<f64, D>> = Vec::new();
-        let mut grid_a: Vec<SVector<f64, D>> = Vec::new();
-        let mut grid_x: Vec<SVector<f64, D>> = Vec::new();
-        if let Some(m) = self.bodies.mpm.as_mut() {
-            m.stencils.rebuild(&m.x).map_err(|e| SimError::StepFailed {
-                step: self.clock.step,
-                time: self.clock.time,
-                message: e.to_string(),
-            })?;
-            n_grid = m.stencils.num_nodes();
-            grid_m = vec![0.0; n_grid];
-            grid_v = vec![SVector::zeros(); n_grid];
-            let r = match m.transfer {
-                Transfer::Apic => {
-                    transfer::p2g_apic(&m.stencils, &m.mass, &m.v, &m.b, &mut grid_m, &mut grid_v)
-                }
-                _ => transfer::p2g_pic(&m.stencils, &m.mass, &m.v, &mut grid_m, &mut grid_v),
-            };
-            r.and_then(|_| transfer::normalise(&grid_m, &mut grid_v))
-                .map_err(|e| SimError::StepFailed {
-                    step: self.clock.step,
-                    time: self.clock.time,
-                    message: e.to_string(),
-                })?;
-            grid_a = vec![SVector::zeros(); n_grid];
-            if integrator.needs_acceleration() {
-                // Newmark's start-of-step acceleration (grid here, FEM vertices below): the
-                // elastic and gravity part evaluated at the start, on this step's grid
-                // (`−M⁻¹∇Ψ(xⁿ) + g`), plus what the particles and vertices carry from the last
-                // step — the contact, friction and slip-penalty part (contact-stabilised
-                // Newmark: the penalties' only), which cannot be evaluated at the start.
-                // Carrying the elastic part through the particles and back smooths it, and
-                // the trapezoidal rule then no longer balances its work: the MPM bar of the
-                // impact comparison gained 1.5 % with contact-stabilised Newmark that way and
-                // gains nothing this way. (Carried, it would also keep each step's Newton
-                // residual; evaluated, the momentum balance is exact whatever the residual.)
-                transfer::p2g_vector(&m.stencils, &m.mass, &m.a, &mut grid_a)
-                    .and_then(|_| transfer::normalise(&grid_m, &mut grid_a))
-                    .map_err(|e| SimError::StepFailed {
-                        step: self.clock.step,
-                        time: self.clock.time,
-                        message: e.to_string(),
-                    })?;
-                let mut gradient = Vec::new();
-                crate::objective::particles::start_gradient(m, &mut gradient);
-                // Nodes with next to no mass are pinned (below): no division by it.
-                let tiny = 1e-14 * grid_m.iter().copied().fold(0.0, f64::max);
-                for ((a, f), &mi) in grid_a.iter_mut().zip(&gradient).zip(&grid_m) {
-                    *a += self.bodies.gravity;
-                    if mi > tiny {
-                        *a -= f / mi;
-                    }
-                }
-            }
-            grid_x = (0..n_grid).map(|i| m.stencils.node_position(i)).collect();
-        }
-
+        let GridState {
+            n_grid,
+            grid_m,
+            grid_v,
+            grid_a,
+            grid_x,
+        } = self.particles_to_grid(integrator)?;
         let transfers_s = clock.elapsed().as_secs_f64();
         // 2. DOF layout: grid nodes, then FEM vertices body by body.
         let mut fem_offset = Vec::with_capacity(self.bodies.fem.len());
@@ -738,6 +744,113 @@ impl<const D: usize> Parts<'_, D> {
             }
         }
         // Level-set boundaries on grid nodes (at the end-of-step boundary position).
+        let penalties = self.level_set_conditions(&grid_x, &grid_m, &mut fixed, &mut target);
+        // Predictor.
+        let mut x_hat = vec![0.0; n_dofs];
+        integrator.predictor(dt, &x0, &v0, &a0, &mut x_hat);
+
+        Ok(StepSetup {
+            n_grid,
+            grid_v,
+            grid_x,
+            fem_offset,
+            n_dofs,
+            mass,
+            x0,
+            v0,
+            a0,
+            fixed,
+            target,
+            penalties,
+            x_hat,
+            transfers_s,
+        })
+    }
+
+    /// Step 1: the particles' mass, momentum (and, for Newmark, acceleration) on this step's
+    /// grid nodes, and the nodes' positions.
+    fn particles_to_grid(&mut self, integrator: Integrator) -> Result<GridState<D>, SimError> {
+        let mut n_grid = 0;
+        let mut grid_m: Vec<f64> = Vec::new();
+        let mut grid_v: Vec<SVector<f64, D>> = Vec::new();
+        let mut grid_a: Vec<SVector<f64, D>> = Vec::new();
+        let mut grid_x: Vec<SVector<f64, D>> = Vec::new();
+        if let Some(m) = self.bodies.mpm.as_mut() {
+            m.stencils.rebuild(&m.x).map_err(|e| SimError::StepFailed {
+                step: self.clock.step,
+                time: self.clock.time,
+                message: e.to_string(),
+            })?;
+            n_grid = m.stencils.num_nodes();
+            grid_m = vec![0.0; n_grid];
+            grid_v = vec![SVector::zeros(); n_grid];
+            let r = match m.transfer {
+                Transfer::Apic => {
+                    transfer::p2g_apic(&m.stencils, &m.mass, &m.v, &m.b, &mut grid_m, &mut grid_v)
+                }
+                _ => transfer::p2g_pic(&m.stencils, &m.mass, &m.v, &mut grid_m, &mut grid_v),
+            };
+            r.and_then(|_| transfer::normalise(&grid_m, &mut grid_v))
+                .map_err(|e| SimError::StepFailed {
+                    step: self.clock.step,
+                    time: self.clock.time,
+                    message: e.to_string(),
+                })?;
+            grid_a = vec![SVector::zeros(); n_grid];
+            if integrator.needs_acceleration() {
+                // Newmark's start-of-step acceleration (grid here, FEM vertices below): the
+                // elastic and gravity part evaluated at the start, on this step's grid
+                // (`−M⁻¹∇Ψ(xⁿ) + g`), plus what the particles and vertices carry from the last
+                // step — the contact, friction and slip-penalty part (contact-stabilised
+                // Newmark: the penalties' only), which cannot be evaluated at the start.
+                // Carrying the elastic part through the particles and back smooths it, and
+                // the trapezoidal rule then no longer balances its work: the MPM bar of the
+                // impact comparison gained 1.5 % with contact-stabilised Newmark that way and
+                // gains nothing this way. (Carried, it would also keep each step's Newton
+                // residual; evaluated, the momentum balance is exact whatever the residual.)
+                transfer::p2g_vector(&m.stencils, &m.mass, &m.a, &mut grid_a)
+                    .and_then(|_| transfer::normalise(&grid_m, &mut grid_a))
+                    .map_err(|e| SimError::StepFailed {
+                        step: self.clock.step,
+                        time: self.clock.time,
+                        message: e.to_string(),
+                    })?;
+                let mut gradient = Vec::new();
+                crate::objective::particles::start_gradient(m, &mut gradient);
+                // Nodes with next to no mass are pinned (below): no division by it.
+                let tiny = 1e-14 * grid_m.iter().copied().fold(0.0, f64::max);
+                for ((a, f), &mi) in grid_a.iter_mut().zip(&gradient).zip(&grid_m) {
+                    *a += self.bodies.gravity;
+                    if mi > tiny {
+                        *a -= f / mi;
+                    }
+                }
+            }
+            grid_x = (0..n_grid).map(|i| m.stencils.node_position(i)).collect();
+        }
+
+        Ok(GridState {
+            n_grid,
+            grid_m,
+            grid_v,
+            grid_a,
+            grid_x,
+        })
+    }
+
+    /// The level-set boundaries' conditions on the grid nodes at the end-of-step boundary
+    /// position: no-slip and axis-aligned slip nodes prescribed in `fixed`/`target`, oblique
+    /// slip as penalties (returned).
+    fn level_set_conditions(
+        &self,
+        grid_x: &[SVector<f64, D>],
+        grid_m: &[f64],
+        fixed: &mut [bool],
+        target: &mut [f64],
+    ) -> Vec<Penalty<D>> {
+        let dt = self.clock.dt;
+        let t1 = self.clock.time + dt;
+        let n_grid = grid_x.len();
         let mut penalties: Vec<Penalty<D>> = Vec::new();
         for ls in &self.bodies.boundaries {
             let vb = ls.velocity(t1 - 0.5 * dt);
@@ -771,26 +884,7 @@ impl<const D: usize> Parts<'_, D> {
                 }
             }
         }
-        // Predictor.
-        let mut x_hat = vec![0.0; n_dofs];
-        integrator.predictor(dt, &x0, &v0, &a0, &mut x_hat);
-
-        Ok(StepSetup {
-            n_grid,
-            grid_v,
-            grid_x,
-            fem_offset,
-            n_dofs,
-            mass,
-            x0,
-            v0,
-            a0,
-            fixed,
-            target,
-            penalties,
-            x_hat,
-            transfers_s,
-        })
+        penalties
     }
 }
 
@@ -886,8 +980,16 @@ fn start_at_predictor<const D: usize>(
     false
 }
 
-#[cfg(test)]
 impl<const D: usize> StepSetup<D> {
+    /// The unknowns' layout.
+    pub(crate) fn dofs(&self) -> Dofs {
+        Dofs {
+            n_grid: self.n_grid,
+            fem_offset: self.fem_offset.clone(),
+            n: self.n_dofs,
+        }
+    }
+
     /// The incremental potential of this step over `bodies`, with the integrator's weight `w`
     /// (as the step builds it).
     pub(crate) fn objective<'a>(&'a self, bodies: &'a Bodies<D>, w: f64) -> StepObjective<'a, D> {
@@ -895,11 +997,7 @@ impl<const D: usize> StepSetup<D> {
             bodies.mpm.as_ref(),
             &bodies.fem,
             &bodies.pairs,
-            Dofs {
-                n_grid: self.n_grid,
-                fem_offset: self.fem_offset.clone(),
-                n: self.n_dofs,
-            },
+            self.dofs(),
             Inertia {
                 mass: &self.mass,
                 x_hat: &self.x_hat,
