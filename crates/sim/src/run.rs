@@ -129,39 +129,7 @@ pub fn run_with<const D: usize>(
         }
         None => None,
     };
-    let mut summary = Summary {
-        scene: name.clone(),
-        femp_version: env!("CARGO_PKG_VERSION").into(),
-        commit: env!("FEMP_COMMIT").into(),
-        command: opts.command.clone(),
-        scene_copy,
-        mpm_bodies: world
-            .bodies
-            .mpm
-            .as_ref()
-            .map(|m| m.bodies.iter().map(|b| b.name.clone()).collect())
-            .unwrap_or_default(),
-        dimension: D,
-        status: "running".into(),
-        particles: world.bodies.mpm.as_ref().map_or(0, |m| m.x.len()),
-        fem_vertices: world.bodies.fem.iter().map(|b| b.x.len()).sum(),
-        method: world.scene.spec.method,
-        augury: world
-            .stepper
-            .augury()
-            .map(|a| crate::output::AugurySummary {
-                grid_spacing: a.grid_spacing,
-                stable_dt: a.stable_dt,
-                boundary_particles: a.system.num_particles(),
-            }),
-        ..Default::default()
-    };
-    for w in world.warnings() {
-        if opts.progress {
-            note(format_args!("[{name}] warning: {w}"));
-        }
-        summary.warnings.push(w);
-    }
+    let mut summary = start_summary(&world, scene_copy, opts);
     // A summary from the start: a run killed outright still says `running` and what it is.
     out.summary(&summary)?;
     let mut all = Vec::new();
@@ -200,6 +168,63 @@ pub fn run_with<const D: usize>(
     summary.status = "completed".into();
     summary.wall_s = start.elapsed().as_secs_f64();
     summary.frames = out.frames();
+    end_warnings(&mut summary, driven);
+    out.summary(&summary)?;
+    Ok(RunResult {
+        summary,
+        metrics: all,
+        force_bodies: world.force_bodies().iter().map(|s| s.to_string()).collect(),
+    })
+}
+
+/// The summary of a run of `world` starting: what it is (scene, build, bodies, method) and the
+/// scene's warnings (printed with `opts.progress`), status `running`.
+fn start_summary<const D: usize>(
+    world: &World<D>,
+    scene_copy: Option<String>,
+    opts: &RunOptions,
+) -> Summary {
+    let mut summary = Summary {
+        scene: world.scene.name.clone(),
+        femp_version: env!("CARGO_PKG_VERSION").into(),
+        commit: env!("FEMP_COMMIT").into(),
+        command: opts.command.clone(),
+        scene_copy,
+        mpm_bodies: world
+            .bodies
+            .mpm
+            .as_ref()
+            .map(|m| m.bodies.iter().map(|b| b.name.clone()).collect())
+            .unwrap_or_default(),
+        dimension: D,
+        status: "running".into(),
+        particles: world.bodies.mpm.as_ref().map_or(0, |m| m.x.len()),
+        fem_vertices: world.bodies.fem.iter().map(|b| b.x.len()).sum(),
+        method: world.scene.spec.method,
+        augury: world
+            .stepper
+            .augury()
+            .map(|a| crate::output::AugurySummary {
+                grid_spacing: a.grid_spacing,
+                stable_dt: a.stable_dt,
+                boundary_particles: a.system.num_particles(),
+            }),
+        ..Default::default()
+    };
+    for w in world.warnings() {
+        if opts.progress {
+            note(format_args!("[{}] warning: {w}", summary.scene));
+        }
+        summary.warnings.push(w);
+    }
+    summary
+}
+
+/// The warnings a completed run's outcome calls for (penetrations, an energy rise nothing
+/// drove, paths through bodies, substeps, retried solves, unconverged friction), printed where a
+/// user must see them and added to the summary.
+fn end_warnings(summary: &mut Summary, driven: bool) {
+    let name = summary.scene.clone();
     if summary.penetrating_steps > 0 {
         let w = format!(
             "points were inside another body after {} of {} steps (at most {} at once; the \
@@ -216,7 +241,7 @@ pub fn run_with<const D: usize>(
         note(format_args!("[{name}] warning: {w}"));
         summary.warnings.push(w);
     }
-    if let Some(w) = energy_warning(&summary, driven) {
+    if let Some(w) = energy_warning(summary, driven) {
         note(format_args!("[{name}] warning: {w}"));
         summary.warnings.push(w);
     }
@@ -256,12 +281,6 @@ pub fn run_with<const D: usize>(
             summary.friction_unconverged_steps
         ));
     }
-    out.summary(&summary)?;
-    Ok(RunResult {
-        summary,
-        metrics: all,
-        force_bodies: world.force_bodies().iter().map(|s| s.to_string()).collect(),
-    })
 }
 
 /// Record a run's end by error in the summary (as far as the disk lets us) and hand the error
@@ -293,6 +312,78 @@ fn finish_failed(
     e
 }
 
+/// The energy a run starts with and the scale a rise is measured against.
+struct EnergyWatch {
+    energy0: f64,
+    gravity0: f64,
+    scale: f64,
+}
+
+impl EnergyWatch {
+    /// Step `step`'s row `m`: the peak total energy and the rise so far into `summary`.
+    fn observe(&mut self, m: &Metrics, step: usize, summary: &mut Summary) {
+        self.scale = self.scale.max((m.gravity_energy - self.gravity0).abs());
+        if total_energy(m) > summary.peak_energy {
+            summary.energy_rise_step = step;
+            summary.peak_energy = total_energy(m);
+        }
+        summary.energy_rise = ((summary.peak_energy - self.energy0) / self.scale).max(0.0);
+    }
+}
+
+/// A run's start: the initial state's metrics row (and in `all`), frame and pictures; the
+/// energy it starts with.
+fn first_row<const D: usize>(
+    world: &World<D>,
+    out: &mut Output,
+    summary: &mut Summary,
+    all: &mut Vec<Metrics>,
+    pictures: &mut Option<Pictures>,
+    total_steps: usize,
+    opts: &RunOptions,
+) -> Result<EnergyWatch, SimError> {
+    let mut m0 = world.measure();
+    let energy0 = total_energy(&m0);
+    // The scale a rise is measured against, independent of the gravity potential's origin
+    // (which can make the total as large, or as close to 0, as one likes): the energy in
+    // motion and deformation at the start, or the gravitational energy released so far —
+    // and never below the total's own round-off.
+    let gravity0 = m0.gravity_energy;
+    let energy_scale = (m0.kinetic_energy + m0.elastic_energy + m0.barrier_energy)
+        .max(1e-9 * energy0.abs())
+        .max(f64::MIN_POSITIVE);
+    summary.initial_energy = energy0;
+    summary.peak_energy = energy0;
+    // Forces are those of a step: none before the first.
+    (m0.contact_forces, m0.friction_forces) = world.body_forces(&[]);
+    out.metrics_row::<D>(&m0)?;
+    summary.max_penetrations = m0.penetrations;
+    all.push(m0);
+    if !opts.no_frames {
+        out.frame(world)?;
+    }
+    if let Some(p) = &opts.pictures {
+        let dir = out.dir().join("pictures");
+        let mut pics = Pictures::new(world, &dir, total_steps as f64 * world.clock.dt, p.clone())?;
+        pics.update(world)?;
+        *pictures = Some(pics);
+    }
+    Ok(EnergyWatch {
+        energy0,
+        gravity0,
+        scale: energy_scale,
+    })
+}
+
+/// A line about a step, above the progress bar (if any) or on standard error with progress.
+fn announce(bar: Option<&indicatif::ProgressBar>, progress: bool, name: &str, line: &str) {
+    if let Some(b) = bar {
+        b.println(format!("[{name}] {line}"));
+    } else if progress {
+        note(format_args!("[{name}] {line}"));
+    }
+}
+
 /// The steps of a run, with their output; returns at the first error (of a step or a write).
 fn drive<const D: usize>(
     world: &mut World<D>,
@@ -312,32 +403,7 @@ fn drive<const D: usize>(
         .time
         .frame_interval
         .unwrap_or(world.clock.dt);
-    let mut m0 = world.measure();
-    let energy0 = total_energy(&m0);
-    // The scale a rise is measured against, independent of the gravity potential's origin
-    // (which can make the total as large, or as close to 0, as one likes): the energy in
-    // motion and deformation at the start, or the gravitational energy released so far —
-    // and never below the total's own round-off.
-    let gravity0 = m0.gravity_energy;
-    let mut energy_scale = (m0.kinetic_energy + m0.elastic_energy + m0.barrier_energy)
-        .max(1e-9 * energy0.abs())
-        .max(f64::MIN_POSITIVE);
-    summary.initial_energy = energy0;
-    summary.peak_energy = energy0;
-    // Forces are those of a step: none before the first.
-    (m0.contact_forces, m0.friction_forces) = world.body_forces(&[]);
-    out.metrics_row::<D>(&m0)?;
-    summary.max_penetrations = m0.penetrations;
-    all.push(m0);
-    if !opts.no_frames {
-        out.frame(world)?;
-    }
-    if let Some(p) = &opts.pictures {
-        let dir = out.dir().join("pictures");
-        let mut pics = Pictures::new(world, &dir, total_steps as f64 * world.clock.dt, p.clone())?;
-        pics.update(world)?;
-        *pictures = Some(pics);
-    }
+    let mut energy = first_row(world, out, summary, all, pictures, total_steps, opts)?;
     let mut next_frame = frame_dt;
     let bar = (opts.progress && std::io::stderr().is_terminal()).then(|| {
         let b = indicatif::ProgressBar::new(total_steps as u64);
@@ -375,11 +441,7 @@ fn drive<const D: usize>(
                 "{first}; solved again with the other Hessian strategy \
                  (solver.retry_other_projection)"
             );
-            if let Some(b) = &bar {
-                b.println(format!("[{name}] {line}"));
-            } else if opts.progress {
-                note(format_args!("[{name}] {line}"));
-            }
+            announce(bar.as_ref(), opts.progress, &name, &line);
         }
         if report.substeps > 1 {
             let line = format!(
@@ -387,11 +449,7 @@ fn drive<const D: usize>(
                  again in {} substeps",
                 world.clock.step, world.clock.dt, report.substeps
             );
-            if let Some(b) = &bar {
-                b.println(format!("[{name}] {line}"));
-            } else if opts.progress {
-                note(format_args!("[{name}] {line}"));
-            }
+            announce(bar.as_ref(), opts.progress, &name, &line);
         }
         let clock = Instant::now();
         let measured = sampled(world.clock.step, total_steps, opts.metrics_every);
@@ -407,12 +465,7 @@ fn drive<const D: usize>(
             (m.contact_forces, m.friction_forces) = world.body_forces(&report.pair_forces);
             m.wall_s = t0.elapsed().as_secs_f64();
             out.metrics_row::<D>(&m)?;
-            energy_scale = energy_scale.max((m.gravity_energy - gravity0).abs());
-            if total_energy(&m) > summary.peak_energy {
-                summary.energy_rise_step = world.clock.step;
-                summary.peak_energy = total_energy(&m);
-            }
-            summary.energy_rise = ((summary.peak_energy - energy0) / energy_scale).max(0.0);
+            energy.observe(&m, world.clock.step, summary);
         }
         summary.steps = world.clock.step;
         summary.simulated_time = world.clock.time;

@@ -381,342 +381,305 @@ fn thinnest(shape: &ShapeSpec) -> Option<f64> {
     }
 }
 
-/// Check every field of a parsed scene (ranges, lengths, names, consistency).
-pub fn validate(s: &SceneSpec) -> Result<(), SimError> {
-    let d = s.dimension;
-    if d != 2 && d != 3 {
-        return Err(invalid("dimension", format!("{d}: must be 2 or 3")));
+/// Check an MPM body (field path `f`) of a `d`-dimensional scene.
+fn mpm_body(f: &str, body: &MpmBody, d: usize) -> Result<(), SimError> {
+    let MpmBody {
+        shape,
+        particles_per_cell,
+        material: m,
+        velocity,
+        angular_velocity,
+        ..
+    } = body;
+    material(&format!("{f}.material"), m)?;
+    if let Some(v) = velocity {
+        self::velocity(&format!("{f}.velocity"), v, d)?;
     }
-    if let Some(g) = &s.gravity {
-        vec_len("gravity", g, d)?;
+    if let Some(w) = angular_velocity {
+        angular(&format!("{f}.angular_velocity"), w, d)?;
     }
-    positive("time.dt", s.time.dt)?;
-    positive("time.duration", s.time.duration)?;
-    if s.time.dt > s.time.duration {
-        return Err(invalid(
-            "time.dt",
-            format!(
-                "{:e} is longer than time.duration ({:e}): the one step would end past the run's end; \
-                 use a Δt no longer than the duration",
-                s.time.dt, s.time.duration
-            ),
-        ));
+    if let Some(ppc) = particles_per_cell {
+        let k = (*ppc as f64).powf(1.0 / d as f64).round() as usize;
+        if *ppc == 0 || k.checked_pow(d as u32) != Some(*ppc) {
+            return Err(invalid(
+                format!("{f}.particles_per_cell"),
+                format!(
+                    "{ppc} must be a perfect {} (particles are placed on a regular sub-grid)",
+                    if d == 2 { "square" } else { "cube" }
+                ),
+            ));
+        }
     }
-    if let Some(f) = s.time.frame_interval {
-        positive("time.frame_interval", f)?;
+    let sf = format!("{f}.shape");
+    match shape {
+        ShapeSpec::Box {
+            min,
+            max,
+            transform: t,
+        } => {
+            box_corners(&sf, min, max, d)?;
+            if let Some(t) = t {
+                transform(&format!("{sf}.transform"), t, d)?;
+            }
+        }
+        ShapeSpec::Disk {
+            center,
+            radius,
+            sampling,
+        } => {
+            vec_len(&format!("{sf}.center"), center, d)?;
+            positive(&format!("{sf}.radius"), *radius)?;
+            if *sampling == Sampling::Polar && d != 2 {
+                return Err(invalid(format!("{sf}.sampling"), "`polar` sampling is 2D"));
+            }
+        }
+        ShapeSpec::Ring {
+            center,
+            r_in,
+            r_out,
+            ..
+        }
+        | ShapeSpec::SemicircularRing {
+            center,
+            r_in,
+            r_out,
+        } => {
+            if d != 2 {
+                return Err(invalid(sf, "rings are 2D shapes"));
+            }
+            vec_len(&format!("{sf}.center"), center, d)?;
+            radii(&sf, *r_in, *r_out)?;
+        }
+        ShapeSpec::Mesh { file, .. } => {
+            if file.is_empty() {
+                return Err(invalid(format!("{sf}.file"), "must name a mesh file"));
+            }
+        }
     }
-    positive("solver.tolerance", s.solver.tolerance)?;
-    if s.solver.max_newton_iterations == 0 {
+    Ok(())
+}
+
+/// Check a FEM body (field path `f`) of a `d`-dimensional scene.
+fn fem_body(f: &str, body: &FemBody, d: usize) -> Result<(), SimError> {
+    let FemBody {
+        mesh,
+        transform: t,
+        material: m,
+        velocity,
+        angular_velocity,
+        prescribed,
+        ..
+    } = body;
+    material(&format!("{f}.material"), m)?;
+    if let Some(v) = velocity {
+        self::velocity(&format!("{f}.velocity"), v, d)?;
+    }
+    if let Some(w) = angular_velocity {
+        angular(&format!("{f}.angular_velocity"), w, d)?;
+    }
+    if let Some(t) = t {
+        transform(&format!("{f}.transform"), t, d)?;
+    }
+    let mf = format!("{f}.mesh");
+    match mesh {
+        MeshSpec::Rectangle { min, max, cells: c } => {
+            if d != 2 {
+                return Err(invalid(mf, "`rectangle` is 2D; use `cuboid`"));
+            }
+            box_corners(&mf, min, max, d)?;
+            cells(&format!("{mf}.cells"), c, 2)?;
+        }
+        MeshSpec::Cuboid { min, max, cells: c } => {
+            if d != 3 {
+                return Err(invalid(mf, "`cuboid` is 3D; use `rectangle`"));
+            }
+            box_corners(&mf, min, max, d)?;
+            cells(&format!("{mf}.cells"), c, 3)?;
+        }
+        MeshSpec::Disk {
+            center,
+            radius,
+            rings,
+        } => {
+            if d != 2 {
+                return Err(invalid(mf, "`disk` meshes are 2D"));
+            }
+            vec_len(&format!("{mf}.center"), center, d)?;
+            positive(&format!("{mf}.radius"), *radius)?;
+            if *rings == 0 {
+                return Err(invalid(format!("{mf}.rings"), "must be at least 1"));
+            }
+        }
+        MeshSpec::Ring {
+            center,
+            r_in,
+            r_out,
+            cells: c,
+        }
+        | MeshSpec::SemicircularRing {
+            center,
+            r_in,
+            r_out,
+            cells: c,
+        } => {
+            if d != 2 {
+                return Err(invalid(mf, "ring meshes are 2D"));
+            }
+            vec_len(&format!("{mf}.center"), center, d)?;
+            radii(&mf, *r_in, *r_out)?;
+            cells(&format!("{mf}.cells"), c, 2)?;
+        }
+        MeshSpec::CosineStrip {
+            wavelength,
+            x0,
+            x1,
+            thickness,
+            cells: c,
+            ..
+        } => {
+            if d != 2 {
+                return Err(invalid(mf, "`cosine_strip` is 2D"));
+            }
+            positive(&format!("{mf}.wavelength"), *wavelength)?;
+            if !(x1 > x0) {
+                return Err(invalid(
+                    format!("{mf}.x1"),
+                    format!("{x1} must exceed x0 = {x0}"),
+                ));
+            }
+            if !(*thickness != 0.0 && thickness.is_finite()) {
+                return Err(invalid(format!("{mf}.thickness"), "must be non-zero"));
+            }
+            cells(&format!("{mf}.cells"), c, 2)?;
+        }
+        MeshSpec::File { path, .. } => {
+            if path.is_empty() {
+                return Err(invalid(format!("{mf}.path"), "must name a mesh file"));
+            }
+        }
+    }
+    for (k, p) in prescribed.iter().enumerate() {
+        let pf = format!("{f}.prescribed[{k}]");
+        match &p.vertices {
+            VertexSelector::Below { axis, value } | VertexSelector::Above { axis, value } => {
+                if *axis >= d {
+                    return Err(invalid(
+                        format!("{pf}.vertices"),
+                        format!("axis {axis} does not exist in {d}D"),
+                    ));
+                }
+                if !value.is_finite() {
+                    return Err(invalid(
+                        format!("{pf}.vertices"),
+                        "threshold must be finite",
+                    ));
+                }
+            }
+            VertexSelector::List(l) if l.is_empty() => {
+                return Err(invalid(format!("{pf}.vertices"), "the list is empty"));
+            }
+            _ => {}
+        }
+        motion(&format!("{pf}.motion"), &p.motion, d)?;
+    }
+    Ok(())
+}
+
+/// Check the `solver` section.
+fn solver(solver: &SolverSpec) -> Result<(), SimError> {
+    positive("solver.tolerance", solver.tolerance)?;
+    if solver.max_newton_iterations == 0 {
         return Err(invalid(
             "solver.max_newton_iterations",
             "must be at least 1",
         ));
     }
-    if s.solver.max_friction_iterations == 0 {
+    if solver.max_friction_iterations == 0 {
         return Err(invalid(
             "solver.max_friction_iterations",
             "must be at least 1",
         ));
     }
-    if !(1..=MAX_SUBSTEPS).contains(&s.solver.max_substeps) {
+    if !(1..=MAX_SUBSTEPS).contains(&solver.max_substeps) {
         return Err(invalid(
             "solver.max_substeps",
-            format!("{} must be from 1 to {MAX_SUBSTEPS}", s.solver.max_substeps),
+            format!("{} must be from 1 to {MAX_SUBSTEPS}", solver.max_substeps),
         ));
     }
-    if !(s.solver.pcg_rtol > 0.0 && s.solver.pcg_rtol < 1.0) {
+    if !(solver.pcg_rtol > 0.0 && solver.pcg_rtol < 1.0) {
         return Err(invalid(
             "solver.pcg_rtol",
-            format!("{} must be in (0, 1)", s.solver.pcg_rtol),
+            format!("{} must be in (0, 1)", solver.pcg_rtol),
         ));
     }
-    if !(1..=MAX_PCG_ITERATIONS).contains(&s.solver.pcg_max_iterations) {
+    if !(1..=MAX_PCG_ITERATIONS).contains(&solver.pcg_max_iterations) {
         return Err(invalid(
             "solver.pcg_max_iterations",
             format!(
                 "{} must be from 1 to {MAX_PCG_ITERATIONS}",
-                s.solver.pcg_max_iterations
+                solver.pcg_max_iterations
             ),
         ));
     }
-    if let Some(max) = s.solver.pcg_rtol_max
-        && !(max >= s.solver.pcg_rtol && max < 1.0)
+    if let Some(max) = solver.pcg_rtol_max
+        && !(max >= solver.pcg_rtol && max < 1.0)
     {
         return Err(invalid(
             "solver.pcg_rtol_max",
-            format!(
-                "{max} must be in [pcg_rtol, 1) = [{}, 1)",
-                s.solver.pcg_rtol
-            ),
+            format!("{max} must be in [pcg_rtol, 1) = [{}, 1)", solver.pcg_rtol),
         ));
     }
     for (field, v) in [
-        ("solver.reuse_hessian_below", s.solver.reuse_hessian_below),
-        (
-            "solver.friction_update_below",
-            s.solver.friction_update_below,
-        ),
+        ("solver.reuse_hessian_below", solver.reuse_hessian_below),
+        ("solver.friction_update_below", solver.friction_update_below),
     ] {
         if !(v >= 0.0 && v.is_finite()) {
             return Err(invalid(field, format!("{v} must be finite and ≥ 0")));
         }
     }
-    if s.bodies.is_empty() {
-        return Err(invalid("bodies", "the scene has no bodies"));
-    }
-    let mut names: Vec<&str> = Vec::new();
-    let mut any_mpm = false;
-    let mut n_fem = 0;
+    Ok(())
+}
+
+/// Check the `mpm` section of a scene with MPM bodies (present; a grid that resolves every MPM
+/// body).
+fn mpm_section(s: &SceneSpec) -> Result<(), SimError> {
+    let Some(m) = &s.mpm else {
+        return Err(invalid(
+            "mpm",
+            "the scene has MPM bodies but no `mpm` section (grid_spacing)",
+        ));
+    };
+    positive("mpm.grid_spacing", m.grid_spacing)?;
+    // Every MPM body at least one grid cell thick (coarser, it is a handful of particles
+    // that no grid resolves).
     for (i, b) in s.bodies.iter().enumerate() {
-        let f = format!("bodies[{i}]");
-        let name = b.name();
-        body_name(
-            &format!("{f}.name"),
-            name,
-            matches!(b, BodySpec::Fem(_)),
-            &names,
-        )?;
-        names.push(name);
-        match b {
-            BodySpec::Mpm(MpmBody {
-                shape,
-                particles_per_cell,
-                material: m,
-                velocity,
-                angular_velocity,
-                ..
-            }) => {
-                any_mpm = true;
-                material(&format!("{f}.material"), m)?;
-                if let Some(v) = velocity {
-                    self::velocity(&format!("{f}.velocity"), v, d)?;
-                }
-                if let Some(w) = angular_velocity {
-                    angular(&format!("{f}.angular_velocity"), w, d)?;
-                }
-                if let Some(ppc) = particles_per_cell {
-                    let k = (*ppc as f64).powf(1.0 / d as f64).round() as usize;
-                    if *ppc == 0 || k.checked_pow(d as u32) != Some(*ppc) {
-                        return Err(invalid(
-                            format!("{f}.particles_per_cell"),
-                            format!(
-                                "{ppc} must be a perfect {} (particles are placed on a regular sub-grid)",
-                                if d == 2 { "square" } else { "cube" }
-                            ),
-                        ));
-                    }
-                }
-                let sf = format!("{f}.shape");
-                match shape {
-                    ShapeSpec::Box {
-                        min,
-                        max,
-                        transform: t,
-                    } => {
-                        box_corners(&sf, min, max, d)?;
-                        if let Some(t) = t {
-                            transform(&format!("{sf}.transform"), t, d)?;
-                        }
-                    }
-                    ShapeSpec::Disk {
-                        center,
-                        radius,
-                        sampling,
-                    } => {
-                        vec_len(&format!("{sf}.center"), center, d)?;
-                        positive(&format!("{sf}.radius"), *radius)?;
-                        if *sampling == Sampling::Polar && d != 2 {
-                            return Err(invalid(
-                                format!("{sf}.sampling"),
-                                "`polar` sampling is 2D",
-                            ));
-                        }
-                    }
-                    ShapeSpec::Ring {
-                        center,
-                        r_in,
-                        r_out,
-                        ..
-                    }
-                    | ShapeSpec::SemicircularRing {
-                        center,
-                        r_in,
-                        r_out,
-                    } => {
-                        if d != 2 {
-                            return Err(invalid(sf, "rings are 2D shapes"));
-                        }
-                        vec_len(&format!("{sf}.center"), center, d)?;
-                        radii(&sf, *r_in, *r_out)?;
-                    }
-                    ShapeSpec::Mesh { file, .. } => {
-                        if file.is_empty() {
-                            return Err(invalid(format!("{sf}.file"), "must name a mesh file"));
-                        }
-                    }
-                }
-            }
-            BodySpec::Fem(FemBody {
-                mesh,
-                transform: t,
-                material: m,
-                velocity,
-                angular_velocity,
-                prescribed,
-                ..
-            }) => {
-                n_fem += 1;
-                material(&format!("{f}.material"), m)?;
-                if let Some(v) = velocity {
-                    self::velocity(&format!("{f}.velocity"), v, d)?;
-                }
-                if let Some(w) = angular_velocity {
-                    angular(&format!("{f}.angular_velocity"), w, d)?;
-                }
-                if let Some(t) = t {
-                    transform(&format!("{f}.transform"), t, d)?;
-                }
-                let mf = format!("{f}.mesh");
-                match mesh {
-                    MeshSpec::Rectangle { min, max, cells: c } => {
-                        if d != 2 {
-                            return Err(invalid(mf, "`rectangle` is 2D; use `cuboid`"));
-                        }
-                        box_corners(&mf, min, max, d)?;
-                        cells(&format!("{mf}.cells"), c, 2)?;
-                    }
-                    MeshSpec::Cuboid { min, max, cells: c } => {
-                        if d != 3 {
-                            return Err(invalid(mf, "`cuboid` is 3D; use `rectangle`"));
-                        }
-                        box_corners(&mf, min, max, d)?;
-                        cells(&format!("{mf}.cells"), c, 3)?;
-                    }
-                    MeshSpec::Disk {
-                        center,
-                        radius,
-                        rings,
-                    } => {
-                        if d != 2 {
-                            return Err(invalid(mf, "`disk` meshes are 2D"));
-                        }
-                        vec_len(&format!("{mf}.center"), center, d)?;
-                        positive(&format!("{mf}.radius"), *radius)?;
-                        if *rings == 0 {
-                            return Err(invalid(format!("{mf}.rings"), "must be at least 1"));
-                        }
-                    }
-                    MeshSpec::Ring {
-                        center,
-                        r_in,
-                        r_out,
-                        cells: c,
-                    }
-                    | MeshSpec::SemicircularRing {
-                        center,
-                        r_in,
-                        r_out,
-                        cells: c,
-                    } => {
-                        if d != 2 {
-                            return Err(invalid(mf, "ring meshes are 2D"));
-                        }
-                        vec_len(&format!("{mf}.center"), center, d)?;
-                        radii(&mf, *r_in, *r_out)?;
-                        cells(&format!("{mf}.cells"), c, 2)?;
-                    }
-                    MeshSpec::CosineStrip {
-                        wavelength,
-                        x0,
-                        x1,
-                        thickness,
-                        cells: c,
-                        ..
-                    } => {
-                        if d != 2 {
-                            return Err(invalid(mf, "`cosine_strip` is 2D"));
-                        }
-                        positive(&format!("{mf}.wavelength"), *wavelength)?;
-                        if !(x1 > x0) {
-                            return Err(invalid(
-                                format!("{mf}.x1"),
-                                format!("{x1} must exceed x0 = {x0}"),
-                            ));
-                        }
-                        if !(*thickness != 0.0 && thickness.is_finite()) {
-                            return Err(invalid(format!("{mf}.thickness"), "must be non-zero"));
-                        }
-                        cells(&format!("{mf}.cells"), c, 2)?;
-                    }
-                    MeshSpec::File { path, .. } => {
-                        if path.is_empty() {
-                            return Err(invalid(format!("{mf}.path"), "must name a mesh file"));
-                        }
-                    }
-                }
-                for (k, p) in prescribed.iter().enumerate() {
-                    let pf = format!("{f}.prescribed[{k}]");
-                    match &p.vertices {
-                        VertexSelector::Below { axis, value }
-                        | VertexSelector::Above { axis, value } => {
-                            if *axis >= d {
-                                return Err(invalid(
-                                    format!("{pf}.vertices"),
-                                    format!("axis {axis} does not exist in {d}D"),
-                                ));
-                            }
-                            if !value.is_finite() {
-                                return Err(invalid(
-                                    format!("{pf}.vertices"),
-                                    "threshold must be finite",
-                                ));
-                            }
-                        }
-                        VertexSelector::List(l) if l.is_empty() => {
-                            return Err(invalid(format!("{pf}.vertices"), "the list is empty"));
-                        }
-                        _ => {}
-                    }
-                    motion(&format!("{pf}.motion"), &p.motion, d)?;
-                }
-            }
-        }
-    }
-    if any_mpm {
-        let Some(m) = &s.mpm else {
+        if let BodySpec::Mpm(body) = b
+            && let Some(t) = thinnest(&body.shape)
+            && t < m.grid_spacing
+        {
             return Err(invalid(
-                "mpm",
-                "the scene has MPM bodies but no `mpm` section (grid_spacing)",
-            ));
-        };
-        positive("mpm.grid_spacing", m.grid_spacing)?;
-        // Every MPM body at least one grid cell thick (coarser, it is a handful of particles
-        // that no grid resolves).
-        for (i, b) in s.bodies.iter().enumerate() {
-            if let BodySpec::Mpm(body) = b
-                && let Some(t) = thinnest(&body.shape)
-                && t < m.grid_spacing
-            {
-                return Err(invalid(
-                    "mpm.grid_spacing",
-                    format!(
-                        "{} is coarser than body `{}` (bodies[{i}]) is thick ({t}): the grid \
-                         must resolve every MPM body with at least one cell across",
-                        m.grid_spacing, body.name
-                    ),
-                ));
-            }
-        }
-        if !(0.0..=1.0).contains(&m.flip_ratio) {
-            return Err(invalid(
-                "mpm.flip_ratio",
-                format!("{} must be in [0, 1]", m.flip_ratio),
+                "mpm.grid_spacing",
+                format!(
+                    "{} is coarser than body `{}` (bodies[{i}]) is thick ({t}): the grid \
+                     must resolve every MPM body with at least one cell across",
+                    m.grid_spacing, body.name
+                ),
             ));
         }
     }
-    let needs_contact = s.method == Method::Bfemp && ((any_mpm && n_fem > 0) || n_fem > 1);
-    augury(s)?;
-    match &s.contact {
+    if !(0.0..=1.0).contains(&m.flip_ratio) {
+        return Err(invalid(
+            "mpm.flip_ratio",
+            format!("{} must be in [0, 1]", m.flip_ratio),
+        ));
+    }
+    Ok(())
+}
+
+/// Check the `contact` section (`None` is an error when `needed`: bodies that can touch), its
+/// pairs naming bodies of `names`.
+fn contact(contact: Option<&ContactSpec>, names: &[&str], needed: bool) -> Result<(), SimError> {
+    match contact {
         Some(c) => {
             positive("contact.dhat", c.dhat)?;
             positive("contact.kappa", c.kappa)?;
@@ -762,7 +725,7 @@ pub fn validate(s: &SceneSpec) -> Result<(), SimError> {
                 }
             }
         }
-        None if needs_contact => {
+        None if needed => {
             return Err(invalid(
                 "contact",
                 "the scene has bodies that can touch but no `contact` section (dhat, kappa)",
@@ -770,6 +733,12 @@ pub fn validate(s: &SceneSpec) -> Result<(), SimError> {
         }
         None => {}
     }
+    Ok(())
+}
+
+/// Check the level-set `boundaries` (only with MPM bodies: they act on the grid).
+fn boundaries(s: &SceneSpec, any_mpm: bool) -> Result<(), SimError> {
+    let d = s.dimension;
     for (k, b) in s.boundaries.iter().enumerate() {
         let bf = format!("boundaries[{k}]");
         if !any_mpm {
@@ -811,6 +780,68 @@ pub fn validate(s: &SceneSpec) -> Result<(), SimError> {
             }
         }
     }
+    Ok(())
+}
+
+/// Check every field of a parsed scene (ranges, lengths, names, consistency).
+pub fn validate(s: &SceneSpec) -> Result<(), SimError> {
+    let d = s.dimension;
+    if d != 2 && d != 3 {
+        return Err(invalid("dimension", format!("{d}: must be 2 or 3")));
+    }
+    if let Some(g) = &s.gravity {
+        vec_len("gravity", g, d)?;
+    }
+    positive("time.dt", s.time.dt)?;
+    positive("time.duration", s.time.duration)?;
+    if s.time.dt > s.time.duration {
+        return Err(invalid(
+            "time.dt",
+            format!(
+                "{:e} is longer than time.duration ({:e}): the one step would end past the run's end; \
+                 use a Δt no longer than the duration",
+                s.time.dt, s.time.duration
+            ),
+        ));
+    }
+    if let Some(f) = s.time.frame_interval {
+        positive("time.frame_interval", f)?;
+    }
+    solver(&s.solver)?;
+    if s.bodies.is_empty() {
+        return Err(invalid("bodies", "the scene has no bodies"));
+    }
+    let mut names: Vec<&str> = Vec::new();
+    let mut any_mpm = false;
+    let mut n_fem = 0;
+    for (i, b) in s.bodies.iter().enumerate() {
+        let f = format!("bodies[{i}]");
+        let name = b.name();
+        body_name(
+            &format!("{f}.name"),
+            name,
+            matches!(b, BodySpec::Fem(_)),
+            &names,
+        )?;
+        names.push(name);
+        match b {
+            BodySpec::Mpm(body) => {
+                any_mpm = true;
+                mpm_body(&f, body, d)?;
+            }
+            BodySpec::Fem(body) => {
+                n_fem += 1;
+                fem_body(&f, body, d)?;
+            }
+        }
+    }
+    if any_mpm {
+        mpm_section(s)?;
+    }
+    let needs_contact = s.method == Method::Bfemp && ((any_mpm && n_fem > 0) || n_fem > 1);
+    augury(s)?;
+    contact(s.contact.as_ref(), &names, needs_contact)?;
+    boundaries(s, any_mpm)?;
     if s.method == Method::Augury && any_mpm {
         return Err(invalid(
             "method",
