@@ -342,6 +342,10 @@ impl<const D: usize> Stencils<D> {
         self.node_index.clear();
     }
 
+    // Long: the hot path of every MPM step (`cargo bench -p femp-kernels --bench transfers`,
+    // "step"); its five numbered phases share the key layout (`locate`, `relative`, `word_at`)
+    // and the scratch buffers' borrows, which split functions would pass around as a dozen
+    // arguments. Split it only with that bench run side by side.
     fn rebuild_inner(&mut self, positions: &[SVector<f64, D>]) -> Result<(), KernelError> {
         let n = positions.len();
         if n >= u32::MAX as usize {

@@ -423,22 +423,47 @@ fn type_name(kind: i64) -> &'static str {
     }
 }
 
-fn assemble<const D: usize>(
-    nodes: Vec<RawNode>,
-    elements: Vec<RawElement>,
+/// ` (line N)` for a line number, nothing for 0 (unknown).
+fn on_line(line: usize) -> String {
+    if line > 0 {
+        format!(" (line {line})")
+    } else {
+        String::new()
+    }
+}
+
+/// The same cell twice (same nodes in any order) is an error: its mass and stiffness would
+/// count twice.
+fn no_cell_twice<const D: usize>(
+    cells: &[[usize; 4]],
+    cells_raw: &[&RawElement],
     path: &Path,
-    opts: ReadOptions,
-) -> Result<Mesh<D>, FemError> {
-    let at = |line: usize| {
-        if line > 0 {
-            format!(" (line {line})")
-        } else {
-            String::new()
+) -> Result<(), FemError> {
+    let mut by_nodes: HashMap<Vec<usize>, usize> = HashMap::with_capacity(cells.len());
+    for (k, c) in cells.iter().enumerate() {
+        let mut key = c[..=D].to_vec();
+        key.sort_unstable();
+        if let Some(first) = by_nodes.insert(key, k) {
+            return Err(file_error(
+                path,
+                cells_raw[k].line,
+                format!(
+                    "element {} has the same nodes as element {}{}: a cell written twice would \
+                     count its mass and stiffness twice",
+                    cells_raw[k].tag,
+                    cells_raw[first].tag,
+                    on_line(cells_raw[first].line)
+                ),
+            ));
         }
-    };
-    // Tags: from 1, each defined once.
+    }
+    Ok(())
+}
+
+/// Node and element tags: from 1, each defined once.
+fn unique_tags(nodes: &[RawNode], elements: &[RawElement], path: &Path) -> Result<(), FemError> {
     let mut seen: HashMap<u64, usize> = HashMap::with_capacity(nodes.len());
-    for n in &nodes {
+    for n in nodes {
         if n.tag == 0 {
             return Err(file_error(
                 path,
@@ -453,13 +478,13 @@ fn assemble<const D: usize>(
                 format!(
                     "node {} is defined twice{}: a node tag names one node",
                     n.tag,
-                    at(first).replace("line", "first on line")
+                    on_line(first).replace("line", "first on line")
                 ),
             ));
         }
     }
     let mut seen: HashMap<u64, usize> = HashMap::with_capacity(elements.len());
-    for e in &elements {
+    for e in elements {
         if e.tag == 0 {
             return Err(file_error(
                 path,
@@ -474,18 +499,27 @@ fn assemble<const D: usize>(
                 format!(
                     "element {} is defined twice{}",
                     e.tag,
-                    at(first).replace("line", "first on line")
+                    on_line(first).replace("line", "first on line")
                 ),
             ));
         }
     }
+    Ok(())
+}
+
+/// The linear simplices of the file (triangles in 2D, tetrahedra in 3D); lower-dimensional
+/// elements and points are skipped, any other element type is an error.
+fn linear_cells<'e, const D: usize>(
+    elements: &'e [RawElement],
+    path: &Path,
+) -> Result<Vec<&'e RawElement>, FemError> {
     let (want, ignore): (i64, &[i64]) = if D == 2 {
         (2, &[1, 8, 15])
     } else {
         (4, &[1, 2, 8, 9, 15])
     };
     let mut cells_raw = Vec::new();
-    for e in &elements {
+    for e in elements {
         if e.kind == want {
             if e.nodes.len() != D + 1 {
                 return Err(file_error(
@@ -528,6 +562,17 @@ fn assemble<const D: usize>(
             ),
         ));
     }
+    Ok(cells_raw)
+}
+
+fn assemble<const D: usize>(
+    nodes: Vec<RawNode>,
+    elements: Vec<RawElement>,
+    path: &Path,
+    opts: ReadOptions,
+) -> Result<Mesh<D>, FemError> {
+    unique_tags(&nodes, &elements, path)?;
+    let cells_raw = linear_cells::<D>(&elements, path)?;
     let index: HashMap<u64, usize> = nodes.iter().enumerate().map(|(i, n)| (n.tag, i)).collect();
     let mut used = vec![false; nodes.len()];
     for e in &cells_raw {
@@ -588,25 +633,7 @@ fn assemble<const D: usize>(
             c
         })
         .collect();
-    // The same cell twice (same nodes in any order): its mass and stiffness would count twice.
-    let mut by_nodes: HashMap<Vec<usize>, usize> = HashMap::with_capacity(cells.len());
-    for (k, c) in cells.iter().enumerate() {
-        let mut key = c[..=D].to_vec();
-        key.sort_unstable();
-        if let Some(first) = by_nodes.insert(key, k) {
-            return Err(file_error(
-                path,
-                cells_raw[k].line,
-                format!(
-                    "element {} has the same nodes as element {}{}: a cell written twice would \
-                     count its mass and stiffness twice",
-                    cells_raw[k].tag,
-                    cells_raw[first].tag,
-                    at(cells_raw[first].line)
-                ),
-            ));
-        }
-    }
+    no_cell_twice::<D>(&cells, &cells_raw, path)?;
     let mesh = Mesh::new_oriented(vertices.clone(), cells.clone()).map_err(|err| match err {
         FemError::DegenerateCell {
             cell,

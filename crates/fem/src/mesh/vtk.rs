@@ -104,6 +104,79 @@ pub struct Vtu {
     pub cell_data: Vec<Field>,
 }
 
+/// The value of attribute `key` in the XML start tag `tag`.
+fn attr(tag: &str, key: &str) -> Option<String> {
+    let k = format!("{key}=\"");
+    let i = tag.find(&k)? + k.len();
+    let j = tag[i..].find('"')? + i;
+    Some(tag[i..j].to_string())
+}
+
+/// Every DataArray of a section as (name, components, f64 values): ASCII inline, or raw in
+/// the appended `blob`; `bad` makes the error for a malformed one.
+fn data_arrays(
+    sec: &str,
+    blob: &[u8],
+    bad: &impl Fn(String) -> FemError,
+) -> Result<Vec<(String, usize, Vec<f64>)>, FemError> {
+    let mut out = Vec::new();
+    let mut rest = sec;
+    while let Some(i) = rest.find("<DataArray") {
+        let end = rest[i..]
+            .find('>')
+            .ok_or_else(|| bad("unterminated DataArray".into()))?
+            + i;
+        let tag = &rest[i..=end];
+        let name = attr(tag, "Name").unwrap_or_default();
+        let comps: usize = attr(tag, "NumberOfComponents")
+            .and_then(|v| v.parse().ok())
+            .unwrap_or(1);
+        let ty = attr(tag, "type").unwrap_or_default();
+        let values: Vec<f64> = if attr(tag, "format").as_deref() == Some("appended") {
+            let off: usize = attr(tag, "offset")
+                .and_then(|v| v.parse().ok())
+                .ok_or_else(|| bad("appended array without offset".into()))?;
+            let hdr = blob
+                .get(off..off + 8)
+                .ok_or_else(|| bad("appended offset out of range".into()))?;
+            let len = u64::from_le_bytes(hdr.try_into().unwrap_or([0; 8])) as usize;
+            let data = blob
+                .get(off + 8..off + 8 + len)
+                .ok_or_else(|| bad("appended array truncated".into()))?;
+            match ty.as_str() {
+                "Float64" | "Int64" => data
+                    .chunks_exact(8)
+                    .map(|c| {
+                        let b: [u8; 8] = c.try_into().unwrap_or([0; 8]);
+                        if ty == "Float64" {
+                            f64::from_le_bytes(b)
+                        } else {
+                            i64::from_le_bytes(b) as f64
+                        }
+                    })
+                    .collect(),
+                "UInt8" => data.iter().map(|&b| b as f64).collect(),
+                other => return Err(bad(format!("unsupported array type {other}"))),
+            }
+        } else {
+            let close = rest[end..]
+                .find("</DataArray>")
+                .ok_or_else(|| bad("unterminated DataArray".into()))?
+                + end;
+            let body = &rest[end + 1..close];
+            body.split_whitespace()
+                .map(|t| {
+                    t.parse::<f64>()
+                        .map_err(|_| bad(format!("bad number `{t}` in {name}")))
+                })
+                .collect::<Result<_, _>>()?
+        };
+        out.push((name, comps, values));
+        rest = &rest[end + 1..];
+    }
+    Ok(out)
+}
+
 impl Vtu {
     /// A grid of the mesh's cells at positions `x` (one per mesh vertex).
     pub fn from_mesh<const D: usize>(mesh: &Mesh<D>, x: &[SVector<f64, D>]) -> Self {
@@ -341,12 +414,6 @@ impl Vtu {
         };
         let xml = std::str::from_utf8(&bytes[..xml_end])
             .map_err(|e| bad(format!("XML is not UTF-8: {e}")))?;
-        let attr = |tag: &str, key: &str| -> Option<String> {
-            let k = format!("{key}=\"");
-            let i = tag.find(&k)? + k.len();
-            let j = tag[i..].find('"')? + i;
-            Some(tag[i..j].to_string())
-        };
         let piece_start = xml.find("<Piece").ok_or_else(|| bad("no <Piece>".into()))?;
         let piece_tag = &xml[piece_start..xml[piece_start..].find('>').unwrap_or(0) + piece_start];
         let n: usize = attr(piece_tag, "NumberOfPoints")
@@ -363,66 +430,7 @@ impl Vtu {
                 _ => "",
             }
         };
-        // Parse every DataArray of a section into (name, components, f64 values).
-        let arrays = |sec: &str| -> Result<Vec<(String, usize, Vec<f64>)>, FemError> {
-            let mut out = Vec::new();
-            let mut rest = sec;
-            while let Some(i) = rest.find("<DataArray") {
-                let end = rest[i..]
-                    .find('>')
-                    .ok_or_else(|| bad("unterminated DataArray".into()))?
-                    + i;
-                let tag = &rest[i..=end];
-                let name = attr(tag, "Name").unwrap_or_default();
-                let comps: usize = attr(tag, "NumberOfComponents")
-                    .and_then(|v| v.parse().ok())
-                    .unwrap_or(1);
-                let ty = attr(tag, "type").unwrap_or_default();
-                let values: Vec<f64> = if attr(tag, "format").as_deref() == Some("appended") {
-                    let off: usize = attr(tag, "offset")
-                        .and_then(|v| v.parse().ok())
-                        .ok_or_else(|| bad("appended array without offset".into()))?;
-                    let hdr = blob
-                        .get(off..off + 8)
-                        .ok_or_else(|| bad("appended offset out of range".into()))?;
-                    let len = u64::from_le_bytes(hdr.try_into().unwrap_or([0; 8])) as usize;
-                    let data = blob
-                        .get(off + 8..off + 8 + len)
-                        .ok_or_else(|| bad("appended array truncated".into()))?;
-                    match ty.as_str() {
-                        "Float64" | "Int64" => data
-                            .chunks_exact(8)
-                            .map(|c| {
-                                let b: [u8; 8] = c.try_into().unwrap_or([0; 8]);
-                                if ty == "Float64" {
-                                    f64::from_le_bytes(b)
-                                } else {
-                                    i64::from_le_bytes(b) as f64
-                                }
-                            })
-                            .collect(),
-                        "UInt8" => data.iter().map(|&b| b as f64).collect(),
-                        other => return Err(bad(format!("unsupported array type {other}"))),
-                    }
-                } else {
-                    let close = rest[end..]
-                        .find("</DataArray>")
-                        .ok_or_else(|| bad("unterminated DataArray".into()))?
-                        + end;
-                    let body = &rest[end + 1..close];
-                    body.split_whitespace()
-                        .map(|t| {
-                            t.parse::<f64>()
-                                .map_err(|_| bad(format!("bad number `{t}` in {name}")))
-                        })
-                        .collect::<Result<_, _>>()?
-                };
-                out.push((name, comps, values));
-                rest = &rest[end + 1..];
-            }
-            Ok(out)
-        };
-        let pts = arrays(section("Points"))?;
+        let pts = data_arrays(section("Points"), blob, &bad)?;
         let (_, _, pv) = pts
             .first()
             .ok_or_else(|| bad("no point coordinates".into()))?;
@@ -430,7 +438,7 @@ impl Vtu {
             return Err(bad(format!("{} coordinates for {n} points", pv.len())));
         }
         let points: Vec<[f64; 3]> = pv.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect();
-        let cells = arrays(section("Cells"))?;
+        let cells = data_arrays(section("Cells"), blob, &bad)?;
         let get = |k: &str| {
             cells
                 .iter()
@@ -461,8 +469,8 @@ impl Vtu {
             points,
             nodes_per_cell,
             connectivity,
-            point_data: to_fields(arrays(section("PointData"))?),
-            cell_data: to_fields(arrays(section("CellData"))?),
+            point_data: to_fields(data_arrays(section("PointData"), blob, &bad)?),
+            cell_data: to_fields(data_arrays(section("CellData"), blob, &bad)?),
         };
         out.check().map_err(bad)?;
         Ok(out)
