@@ -7,6 +7,11 @@
 //! modules is a circle: each can only be understood, tested or moved with all the others.
 //! Run as a test (`cargo test -p xtask`), so CI fails on a new circle, naming its modules and the
 //! edges that close it.
+//!
+//! And no function of a crate's library code (tests aside) longer than [`MAX_FUNCTION_LINES`]
+//! without a stated reason: a comment starting `// Long:` in the lines just above it (its doc
+//! comment or attributes between) says why it is one piece. A long function is read, tested and
+//! changed as a whole; the check fails naming each one, with its length.
 
 use std::collections::{BTreeMap, BTreeSet};
 use std::path::Path;
@@ -190,6 +195,167 @@ fn circles<'a>(g: &BTreeMap<&'a str, BTreeSet<&'a str>>) -> Vec<Vec<&'a str>> {
     t.out
 }
 
+/// The longest function a crate's library code has without a stated reason (lines from `fn`
+/// to its closing brace).
+const MAX_FUNCTION_LINES: usize = 150;
+
+/// One function of a source file: its name, first line (1-based) and length in lines.
+#[derive(Debug, PartialEq)]
+struct Function {
+    name: String,
+    line: usize,
+    lines: usize,
+    /// A `// Long:` comment just above it says why it is long.
+    reason: bool,
+}
+
+/// The functions of `text` that have a body, outside `#[cfg(test)]` items, nested ones too.
+/// Comments, string and character literals are skipped (a brace in them does not count).
+fn functions(text: &str) -> Vec<Function> {
+    let c: Vec<char> = text.chars().collect();
+    let n = c.len();
+    // Code positions only: comments and literals blanked to spaces (newlines kept).
+    let mut code = c.clone();
+    let mut i = 0;
+    let blank = |code: &mut Vec<char>, from: usize, to: usize| {
+        for ch in &mut code[from..to.min(n)] {
+            if *ch != '\n' {
+                *ch = ' ';
+            }
+        }
+    };
+    while i < n {
+        if c[i] == '/' && c.get(i + 1) == Some(&'/') {
+            let j = (i..n).find(|&k| c[k] == '\n').unwrap_or(n);
+            blank(&mut code, i, j);
+            i = j;
+        } else if c[i] == '/' && c.get(i + 1) == Some(&'*') {
+            let j = (i + 2..n.saturating_sub(1))
+                .find(|&k| c[k] == '*' && c[k + 1] == '/')
+                .map_or(n, |k| k + 2);
+            blank(&mut code, i, j);
+            i = j;
+        } else if c[i] == 'r'
+            && (i == 0 || !(c[i - 1].is_alphanumeric() || c[i - 1] == '_'))
+            && matches!(c.get(i + 1), Some('"' | '#'))
+        {
+            // A raw string r"…", r#"…"#.
+            let hashes = c[i + 1..].iter().take_while(|&&ch| ch == '#').count();
+            if c.get(i + 1 + hashes) != Some(&'"') {
+                i += 1;
+                continue;
+            }
+            let close: Vec<char> = std::iter::once('"')
+                .chain(std::iter::repeat_n('#', hashes))
+                .collect();
+            let start = i + 2 + hashes;
+            let j = (start..n)
+                .find(|&k| c[k..].starts_with(&close))
+                .map_or(n, |k| k + close.len());
+            blank(&mut code, i, j);
+            i = j;
+        } else if c[i] == '"' {
+            let mut j = i + 1;
+            while j < n && c[j] != '"' {
+                j += if c[j] == '\\' { 2 } else { 1 };
+            }
+            blank(&mut code, i, j + 1);
+            i = j + 1;
+        } else if c[i] == '\'' {
+            // A character literal ('x', '\n', '\u{7b}'), or a lifetime ('a).
+            let end = if c.get(i + 1) == Some(&'\\') {
+                (i + 2..n).find(|&k| c[k] == '\'')
+            } else if c.get(i + 2) == Some(&'\'') {
+                Some(i + 2)
+            } else {
+                None
+            };
+            match end {
+                Some(j) => {
+                    blank(&mut code, i, j + 1);
+                    i = j + 1;
+                }
+                None => i += 1,
+            }
+        } else {
+            i += 1;
+        }
+    }
+    let line_of = |k: usize| c[..k].iter().filter(|&&ch| ch == '\n').count() + 1;
+    let word_at = |k: usize, w: &str| {
+        let wc: Vec<char> = w.chars().collect();
+        code[k..].starts_with(&wc)
+            && (k == 0 || !(code[k - 1].is_alphanumeric() || code[k - 1] == '_'))
+            && code
+                .get(k + wc.len())
+                .is_none_or(|ch| !(ch.is_alphanumeric() || *ch == '_'))
+    };
+    // The end (one past the closing brace) of the block opening at the first `{` from `k`
+    // (None if a `;` comes first: no body).
+    let block_end = |k: usize| -> Option<(usize, usize)> {
+        let open = (k..n).find(|&j| code[j] == '{' || code[j] == ';')?;
+        if code[open] == ';' {
+            return None;
+        }
+        let mut depth = 0usize;
+        for (j, &ch) in code.iter().enumerate().skip(open) {
+            match ch {
+                '{' => depth += 1,
+                '}' => {
+                    depth -= 1;
+                    if depth == 0 {
+                        return Some((open, j + 1));
+                    }
+                }
+                _ => {}
+            }
+        }
+        Some((open, n))
+    };
+    let lines: Vec<&str> = text.lines().collect();
+    let mut out = Vec::new();
+    let mut k = 0;
+    while k < n {
+        if code[k..].starts_with(&['#', '[', 'c', 'f', 'g', '(', 't', 'e', 's', 't', ')', ']']) {
+            // Skip the item the attribute is on.
+            match block_end(k) {
+                Some((_, end)) => k = end,
+                None => k += 1,
+            }
+            continue;
+        }
+        if word_at(k, "fn") {
+            let name: String = code[k + 2..]
+                .iter()
+                .skip_while(|ch| ch.is_whitespace())
+                .take_while(|ch| ch.is_alphanumeric() || **ch == '_')
+                .collect();
+            if let Some((_, end)) = block_end(k) {
+                let (first, last) = (line_of(k), line_of(end - 1));
+                // The comment lines, attributes and doc lines right above the `fn` line.
+                let reason = lines[..first - 1]
+                    .iter()
+                    .rev()
+                    .map(|l| l.trim())
+                    .take_while(|l| {
+                        l.starts_with("//") || l.starts_with("#[") || l.starts_with("pub")
+                    })
+                    .any(|l| l.starts_with("// Long:"));
+                out.push(Function {
+                    name,
+                    line: first,
+                    lines: last - first + 1,
+                    reason,
+                });
+            }
+            k += 2;
+            continue;
+        }
+        k += 1;
+    }
+    out
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -225,6 +391,94 @@ mod tests {
         }
         assert!(found.is_empty(), "module circles:\n{}", found.join("\n"));
         assert!(srcs.len() >= 8, "{} crates read", srcs.len());
+    }
+
+    /// No library function (crates' `src`, tests aside) is longer than [`MAX_FUNCTION_LINES`]
+    /// without a `// Long:` reason above it.
+    #[test]
+    fn no_library_function_is_long_without_a_reason() {
+        let root = crate::validate::workspace_root();
+        let mut long = Vec::new();
+        let mut stack = vec![root.join("crates")];
+        let mut read = 0;
+        while let Some(dir) = stack.pop() {
+            for e in std::fs::read_dir(&dir).unwrap().flatten() {
+                let p = e.path();
+                let rel = p
+                    .strip_prefix(&root)
+                    .unwrap()
+                    .to_string_lossy()
+                    .into_owned();
+                if p.is_dir() {
+                    // Library code only: not integration tests, benches or examples.
+                    let name = p.file_name().unwrap().to_string_lossy();
+                    if !matches!(name.as_ref(), "tests" | "benches" | "examples" | "target") {
+                        stack.push(p);
+                    }
+                } else if p.extension().is_some_and(|x| x == "rs") && rel.contains("/src/") {
+                    read += 1;
+                    let text = std::fs::read_to_string(&p).unwrap();
+                    for f in functions(&text) {
+                        if f.lines > MAX_FUNCTION_LINES && !f.reason {
+                            long.push(format!(
+                                "{rel}:{} fn {} ({} lines)",
+                                f.line, f.name, f.lines
+                            ));
+                        }
+                    }
+                }
+            }
+        }
+        assert!(read > 50, "{read} source files read");
+        long.sort();
+        assert!(
+            long.is_empty(),
+            "functions over {MAX_FUNCTION_LINES} lines without a `// Long:` reason above them \
+             (split them, or say why they are one piece):\n{}",
+            long.join("\n")
+        );
+    }
+
+    /// Function lengths are counted from `fn` to its closing brace, braces in comments and
+    /// literals aside, test items skipped, and a `// Long:` reason seen through doc comments.
+    #[test]
+    fn function_lengths_are_counted_as_written() {
+        let text = r##"
+/// Doc.
+pub fn a() {
+    let s = "}}}"; let r = r#"{"#; let c = '}'; let l: &'static str = "x";
+    // }
+    /* { */
+}
+
+fn decl();
+
+// Long: one piece.
+/// Doc.
+#[inline]
+fn b<'a>(x: &'a str) -> &'a str {
+    fn inner() {}
+    x
+}
+
+#[cfg(test)]
+mod tests {
+    fn hidden() {}
+}
+"##;
+        let f = functions(text);
+        let got: Vec<(&str, usize, usize, bool)> = f
+            .iter()
+            .map(|f| (f.name.as_str(), f.line, f.lines, f.reason))
+            .collect();
+        assert_eq!(
+            got,
+            vec![
+                ("a", 3, 5, false),
+                ("b", 14, 4, true),
+                ("inner", 15, 1, false)
+            ]
+        );
     }
 
     /// The check sees a circle when there is one (two modules naming each other, through
