@@ -6,7 +6,8 @@
 //!
 //! `cargo run --release -p femp-augury --example ramp_study` (environment: `HS=1,0.5` mesh sizes,
 //! `MU=0.2`, `ONLY=grid_1h,pic` variants by name, `OUT=file.csv` for the table as CSV; default
-//! `target/ramp_study.csv`). docs/augury.md has the table and what it says.
+//! `target/ramp_study.csv`). The committed table is `fixtures/analysis/ramp_study_2d.csv`;
+//! docs/augury.md says what it shows.
 
 use std::io::Write;
 
