@@ -393,6 +393,44 @@ mod tests {
         assert!(srcs.len() >= 8, "{} crates read", srcs.len());
     }
 
+    /// The simulator's output layer (crates/sim `io`: metrics, output, pictures) sits above the
+    /// simulation: only `run` (which drives it) and the crate root (which re-exports it) use it,
+    /// by its own path or the re-exported one.
+    #[test]
+    fn nothing_below_the_io_layer_imports_it() {
+        let mods = modules(&crate::validate::workspace_root().join("crates/sim/src"));
+        assert!(
+            mods.contains_key("io::metrics"),
+            "crates/sim/src/io not found"
+        );
+        let g = edges(&mods);
+        let above = |m: &str| m.is_empty() || m == "run" || m == "io" || m.starts_with("io::");
+        let mut bad = Vec::new();
+        for (m, code) in &mods {
+            if above(m) {
+                continue;
+            }
+            for t in g.get(m.as_str()).into_iter().flatten() {
+                if t.starts_with("io") {
+                    bad.push(format!("{m} → {t}"));
+                }
+            }
+            for name in ["metrics", "output", "render"] {
+                if !paths_after(code, "crate::")
+                    .iter()
+                    .all(|p| p.first() != Some(&name))
+                {
+                    bad.push(format!("{m} → crate::{name} (the io layer, re-exported)"));
+                }
+            }
+        }
+        assert!(
+            bad.is_empty(),
+            "the io layer imported from below:\n{}",
+            bad.join("\n")
+        );
+    }
+
     /// No library function (crates' `src`, tests aside) is longer than [`MAX_FUNCTION_LINES`]
     /// without a `// Long:` reason above it.
     #[test]

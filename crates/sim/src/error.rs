@@ -2,7 +2,7 @@
 
 use std::path::PathBuf;
 
-/// The lock file that keeps two runs out of one output directory (`crate::output`).
+/// The lock file that keeps two runs out of one output directory (`crate::io::output`).
 pub const LOCK_FILE: &str = ".femp.lock";
 
 /// Everything that can go wrong, named by what and where.

@@ -17,7 +17,9 @@
 //! bodies, contact pairs, level sets, point-in-body queries), its [`world::Clock`] and its
 //! [`world::Stepper`] — one per method, chosen when the world is built (`stepper`): BFEMP's
 //! integrator and Newton solvers (the step in `step`, its incremental potential in
-//! `objective`), or the augury system (`augury`). Both steps return a [`StepReport`].
+//! `objective`), or the augury system (`augury`). Both steps return a [`StepReport`]. Above the
+//! simulation, the `io` layer — [`metrics`], [`output`], [`render`] — measures and writes what a
+//! run shows; [`run`](run::run) drives it, and nothing below imports it.
 //!
 //! ```no_run
 //! let scene = femp::scene::load(std::path::Path::new("fixtures/scenes/block_on_plate.json"))?;
@@ -31,12 +33,10 @@ mod bodies;
 mod build;
 mod clock;
 mod error;
-pub mod metrics;
+mod io;
 pub mod motion;
 mod objective;
-pub mod output;
 mod overlap;
-pub mod render;
 mod report;
 pub mod run;
 pub mod scene;
@@ -46,5 +46,6 @@ pub mod sweep;
 pub mod world;
 
 pub use error::SimError;
+pub use io::{metrics, output, render};
 pub use report::StepReport;
 pub use world::World;

@@ -11,9 +11,9 @@ use std::path::Path;
 use std::time::Instant;
 
 use crate::error::SimError;
-use crate::metrics::Metrics;
-use crate::output::{Output, OutputOptions, Summary};
-use crate::render::{PictureOptions, Pictures};
+use crate::io::metrics::Metrics;
+use crate::io::output::{Output, OutputOptions, Summary};
+use crate::io::render::{PictureOptions, Pictures};
 use crate::report::StepReport;
 use crate::scene::Scene;
 use crate::world::World;
@@ -58,7 +58,7 @@ pub struct RunResult {
     /// Every step's metrics (as written to `metrics.csv`), starting with the initial state.
     pub metrics: Vec<Metrics>,
     /// The bodies with contact-force columns in `metrics.csv`
-    /// ([`crate::metrics::csv_header`]'s `forces_of`).
+    /// ([`crate::io::metrics::csv_header`]'s `forces_of`).
     pub force_bodies: Vec<String>,
 }
 
@@ -117,7 +117,7 @@ pub fn run_with<const D: usize>(
         note(format_args!(
             "[{name}] removed the outputs of an earlier run from {}: {}",
             out_dir.display(),
-            crate::output::describe_outputs(out_dir, out.removed())
+            crate::io::output::describe_outputs(out_dir, out.removed())
         ));
     }
     let total_steps = step_count(world.scene.spec.time.duration, world.clock.dt);
@@ -125,7 +125,7 @@ pub fn run_with<const D: usize>(
     let scene_copy = match &world.scene.source {
         Some(text) => {
             out.scene_copy(text)?;
-            Some(crate::output::SCENE_COPY.to_string())
+            Some(crate::io::output::SCENE_COPY.to_string())
         }
         None => None,
     };
@@ -204,7 +204,7 @@ fn start_summary<const D: usize>(
         augury: world
             .stepper
             .augury()
-            .map(|a| crate::output::AugurySummary {
+            .map(|a| crate::io::output::AugurySummary {
                 grid_spacing: a.grid_spacing,
                 stable_dt: a.stable_dt,
                 boundary_particles: a.system.num_particles(),

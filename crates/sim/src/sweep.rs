@@ -31,7 +31,7 @@ use crate::build::inside_simplex;
 pub const SAMPLES: usize = 16;
 
 /// Where every point that can touch a body is: the particles and each FEM body's vertices (a
-/// state of the world, for [`World::sweep`]).
+/// state of the world, for [`crate::World::sweep`]).
 #[derive(Clone, Debug, Default)]
 pub struct Positions<const D: usize> {
     /// MPM particles.

@@ -10,7 +10,7 @@ use nalgebra::SVector;
 use serde::Serialize;
 
 use crate::error::SimError;
-use crate::metrics::{Metrics, csv_header};
+use crate::io::metrics::{Metrics, csv_header};
 use crate::world::World;
 
 /// Final state of a run, written to `summary.json`.
