@@ -4,11 +4,11 @@
 //!
 //! Compared, file by file under both trees: every `.csv` (each cell as text, except the
 //! `wall_s` column), every `summary.json` and `scene_copy.json` (as JSON values, without
-//! `wall_s` and `timing`), and every validation `outcome.json` (its checks and notes as text,
-//! with each duration — a number followed by `s`, `ms` or `min` — masked, and without its wall
-//! time, finish time, commit and concurrency). Frames and pictures are not compared (they
-//! follow from the same states). Prints what differs and fails if anything does, or if a file
-//! is in one tree only.
+//! `wall_s`, `timing` and the build's `commit`), and every validation `outcome.json` (its
+//! checks and notes as text, with each duration — a number followed by `s`, `ms` or `min` —
+//! masked, and without its wall time, finish time, commit and concurrency). Frames and pictures
+//! are not compared (they follow from the same states). Prints what differs and fails if
+//! anything does, or if a file is in one tree only.
 //!
 //! ```text
 //! RAYON_NUM_THREADS=1 cargo xtask validate --quick --jobs 1 --out /tmp/before   # old commit
@@ -107,7 +107,7 @@ fn compare(a: &Path, b: &Path) -> Result<Report> {
         let tb = std::fs::read_to_string(pb).with_context(|| pb.display().to_string())?;
         let diff = match kind(pa).expect("listed files have a kind") {
             Kind::Csv => csv_difference(&ta, &tb),
-            Kind::Json => json_difference(&ta, &tb, &["wall_s", "timing"]),
+            Kind::Json => json_difference(&ta, &tb, &["wall_s", "timing", "commit"]),
             Kind::Outcome => outcome_difference(&ta, &tb),
         };
         match diff {
