@@ -2,8 +2,9 @@
 //! bodies, contact pairs (which points may touch which facets) and level-set boundaries; and
 //! the point-in-body and point–facet queries both methods and the metrics use.
 
-use femp_contact::ContactPotential;
+use femp_contact::broad_phase::{Candidates, candidates_within};
 use femp_contact::friction::FrictionParams;
+use femp_contact::{ContactError, ContactPotential, ContactTerm};
 use femp_fem::{Boundary, ElasticBody, Material, Mesh};
 use femp_kernels::{Grid, Stencils};
 use nalgebra::{SMatrix, SVector};
@@ -243,6 +244,26 @@ pub struct Pair<const D: usize> {
     pub potential: ContactPotential<D>,
     /// Friction (μ may be 0: then no friction work at all).
     pub friction: FrictionParams,
+}
+
+impl<const D: usize> Pair<D> {
+    /// The pair's active contact terms (into `terms`) for `points` with weights `w` against its
+    /// facet body's boundary `facets` at `facet_x`: the broad phase's candidates within `within`
+    /// of a facet (into `cands`), then the barrier's terms among them. An error if a point
+    /// touches or crosses a facet. What the step's objective, the metrics and the overlap check
+    /// each collect.
+    pub(crate) fn collect_terms(
+        &self,
+        points: &[SVector<f64, D>],
+        w: &[f64],
+        (facet_x, facets): (&[SVector<f64, D>], &[[u32; 3]]),
+        within: f64,
+        (cands, terms): (&mut Candidates, &mut Vec<ContactTerm>),
+    ) -> Result<(), ContactError> {
+        candidates_within(points, facet_x, facets, within, cands);
+        self.potential
+            .collect_terms(points, w, facet_x, cands, terms)
+    }
 }
 
 /// A level-set boundary acting on grid nodes.

@@ -271,22 +271,16 @@ fn check_overlaps<const D: usize>(
             return Err(e);
         }
         // Touching the boundary (distance 0) is infeasible too.
-        let mut c = femp_contact::broad_phase::Candidates::default();
-        femp_contact::broad_phase::candidates_within(
-            &points,
-            &target.x,
-            &target.facets,
-            0.0,
-            &mut c,
-        );
         let w = vec![1.0; points.len()];
-        let mut terms = Vec::new();
         if let Err(femp_contact::ContactError::Penetration {
             particle, facet, ..
-        }) = pair
-            .potential
-            .collect_terms(&points, &w, &target.x, &c, &mut terms)
-        {
+        }) = pair.collect_terms(
+            &points,
+            &w,
+            (&target.x, &target.facets),
+            0.0,
+            (&mut Default::default(), &mut Vec::new()),
+        ) {
             return Err(SimError::Overlap {
                 a: pair.names.0.clone(),
                 b: pair.names.1.clone(),

@@ -404,19 +404,14 @@ impl<const D: usize> World<D> {
                     }
                 }
             }
-            let mut c = femp_contact::broad_phase::Candidates::default();
-            femp_contact::broad_phase::candidates_within(
-                &pts,
-                &target.x,
-                &target.facets,
-                pair.potential.barrier.dhat,
-                &mut c,
-            );
             let mut terms = Vec::new();
-            match pair
-                .potential
-                .collect_terms(&pts, &w, &target.x, &c, &mut terms)
-            {
+            match pair.collect_terms(
+                &pts,
+                &w,
+                (&target.x, &target.facets),
+                pair.potential.barrier.dhat,
+                (&mut Default::default(), &mut terms),
+            ) {
                 Ok(()) => {
                     m.barrier_energy += pair.potential.energy(&terms);
                     for t in &terms {
@@ -491,20 +486,17 @@ impl<const D: usize> World<D> {
         for pair in &self.bodies.pairs {
             let target = &self.bodies.fem[pair.facets_of];
             let (pts, w) = self.pair_points(pair);
-            let mut c = femp_contact::broad_phase::Candidates::default();
-            femp_contact::broad_phase::candidates_within(
-                &pts,
-                &target.x,
-                &target.facets,
-                pair.potential.barrier.dhat,
-                &mut c,
-            );
             let mut terms = Vec::new();
             let mut f = SVector::<f64, D>::zeros();
             let mut per_point = Vec::new();
             if pair
-                .potential
-                .collect_terms(&pts, &w, &target.x, &c, &mut terms)
+                .collect_terms(
+                    &pts,
+                    &w,
+                    (&target.x, &target.facets),
+                    pair.potential.barrier.dhat,
+                    (&mut Default::default(), &mut terms),
+                )
                 .is_ok()
             {
                 pair.potential

@@ -116,15 +116,13 @@ impl<'a, const D: usize> Contact<'a, D> {
         let w = weights_of(self.mpm, self.fem, pair);
         let bx = &cfg.fem_x[pair.facets_of];
         let facets = &self.fem[pair.facets_of].facets;
-        broad_phase::candidates_within(
+        pair.collect_terms(
             &pts,
-            bx,
-            facets,
+            w,
+            (bx, facets),
             pair.potential.barrier.dhat,
-            &mut self.cands,
-        );
-        pair.potential
-            .collect_terms(&pts, w, bx, &self.cands, &mut self.terms)
+            (&mut self.cands, &mut self.terms),
+        )
     }
 
     /// Add `w (B_k + D_k)` of every pair to `e`; `+∞` if a contact is infeasible.
