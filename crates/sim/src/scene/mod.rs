@@ -381,6 +381,24 @@ fn thinnest(shape: &ShapeSpec) -> Option<f64> {
     }
 }
 
+/// Check what every body has (field path `f`): its material and its initial velocity and
+/// angular velocity, if given.
+fn material_and_motion(
+    f: &str,
+    m: &MaterialSpec,
+    (velocity, angular_velocity): (Option<&[f64]>, Option<&AngularSpec>),
+    d: usize,
+) -> Result<(), SimError> {
+    material(&format!("{f}.material"), m)?;
+    if let Some(v) = velocity {
+        self::velocity(&format!("{f}.velocity"), v, d)?;
+    }
+    if let Some(w) = angular_velocity {
+        angular(&format!("{f}.angular_velocity"), w, d)?;
+    }
+    Ok(())
+}
+
 /// Check an MPM body (field path `f`) of a `d`-dimensional scene.
 fn mpm_body(f: &str, body: &MpmBody, d: usize) -> Result<(), SimError> {
     let MpmBody {
@@ -391,13 +409,7 @@ fn mpm_body(f: &str, body: &MpmBody, d: usize) -> Result<(), SimError> {
         angular_velocity,
         ..
     } = body;
-    material(&format!("{f}.material"), m)?;
-    if let Some(v) = velocity {
-        self::velocity(&format!("{f}.velocity"), v, d)?;
-    }
-    if let Some(w) = angular_velocity {
-        angular(&format!("{f}.angular_velocity"), w, d)?;
-    }
+    material_and_motion(f, m, (velocity.as_deref(), angular_velocity.as_ref()), d)?;
     if let Some(ppc) = particles_per_cell {
         let k = (*ppc as f64).powf(1.0 / d as f64).round() as usize;
         if *ppc == 0 || k.checked_pow(d as u32) != Some(*ppc) {
@@ -470,13 +482,7 @@ fn fem_body(f: &str, body: &FemBody, d: usize) -> Result<(), SimError> {
         prescribed,
         ..
     } = body;
-    material(&format!("{f}.material"), m)?;
-    if let Some(v) = velocity {
-        self::velocity(&format!("{f}.velocity"), v, d)?;
-    }
-    if let Some(w) = angular_velocity {
-        angular(&format!("{f}.angular_velocity"), w, d)?;
-    }
+    material_and_motion(f, m, (velocity.as_deref(), angular_velocity.as_ref()), d)?;
     if let Some(t) = t {
         transform(&format!("{f}.transform"), t, d)?;
     }
