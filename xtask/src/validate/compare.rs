@@ -29,7 +29,7 @@ use femp::scene::{
     MaterialSpec, Method, MpmBody, MpmSpec, SceneSpec, TimeSpec,
 };
 
-use super::charts::{self, Chart, Series, Style};
+use super::analysis::pareto::{Point, fronts, max_penetrations, pareto_chart};
 use super::scenes::{bodies, linear, mpm, name_of, particle_box, penalty, prescribed, rectangle};
 use super::{Check, Ctx, Outcome, Pictures, ROUND_OFF_GAIN, Tier};
 
@@ -109,96 +109,6 @@ fn explicit_scene(h: f64, dt: f64, augury: AugurySpec) -> SceneSpec {
     );
     spec.gravity = Some(gravity());
     spec
-}
-
-/// One run's outcome.
-pub(super) struct Point {
-    pub method: &'static str,
-    pub h: f64,
-    pub dt: f64,
-    pub wall: f64,
-    pub error: f64,
-    pub penetrations: usize,
-    /// How deep the deepest point went, in words (`analysis_depth`).
-    pub depth: String,
-}
-
-/// Each method's Pareto front (the most accurate run up to each wall time) as a chart series,
-/// and every run as a table row (figure prefixed by `prefix`).
-pub(super) fn fronts(
-    points: &[Point],
-    methods: &[&str],
-    prefix: &str,
-    out: &mut Outcome,
-) -> Vec<Series> {
-    let mut series = Vec::new();
-    for (c, m) in methods.iter().enumerate() {
-        let mut pts: Vec<&Point> = points.iter().filter(|p| p.method == *m).collect();
-        pts.sort_by(|a, b| a.wall.total_cmp(&b.wall));
-        let mut best = f64::INFINITY;
-        let mut front = Vec::new();
-        for p in &pts {
-            if p.error < best {
-                best = p.error;
-                front.push((p.wall, p.error.max(1e-6)));
-            }
-        }
-        series.push(Series::line(*m, front, c));
-        for p in &pts {
-            out.checks.push(Check::info(
-                &format!("{prefix}{m}, h = {}, Δt = {:.2e} s", p.h, p.dt),
-                format!(
-                    "error {:.2} %, {:.2} s wall, max penetrations {}{}",
-                    100.0 * p.error,
-                    p.wall,
-                    p.penetrations,
-                    if p.penetrations > 0 {
-                        format!(" ({})", p.depth)
-                    } else {
-                        String::new()
-                    }
-                ),
-                "→ 0".into(),
-            ));
-        }
-    }
-    series
-}
-
-/// The largest penetration count over the runs of methods whose name starts with `prefix`.
-pub(super) fn max_penetrations(points: &[Point], prefix: &str) -> usize {
-    points
-        .iter()
-        .filter(|p| p.method.starts_with(prefix))
-        .map(|p| p.penetrations)
-        .max()
-        .unwrap_or(0)
-}
-
-/// The speed-against-accuracy chart (log–log, markers) of `series` as `stem` (tier appended).
-pub(super) fn pareto_chart(
-    ctx: &Ctx,
-    stem: &str,
-    title: &str,
-    y_label: &str,
-    series: Vec<Series>,
-) -> Result<std::path::PathBuf> {
-    charts::write_styled(
-        &ctx.charts,
-        &Chart {
-            stem: format!("{stem}_{}", ctx.tier.name()),
-            title: title.into(),
-            x_label: "wall time (s)".into(),
-            y_label: y_label.into(),
-            series,
-        },
-        Style {
-            log_x: true,
-            log_y: true,
-            markers: true,
-            ..Default::default()
-        },
-    )
 }
 
 fn com_x(masses: &[f64], xs: impl Iterator<Item = f64>) -> f64 {

@@ -24,9 +24,9 @@ use femp::scene::{
     MeshSpec, Method, SceneSpec, TimeSpec,
 };
 
+use super::analysis::hertz::{self, A_LO, E, Load, NU, R};
+use super::analysis::pareto::{Point, fronts, max_penetrations, pareto_chart};
 use super::charts::{self, Chart, Series};
-use super::compare::{Point, fronts, max_penetrations, pareto_chart};
-use super::hertz::{self, A_LO, E, Load, NU, R};
 use super::scenes::{bodies, linear, moving, penalty, prescribed, rectangle};
 use super::{Check, Ctx, Outcome, Pictures, Tier};
 

@@ -9,6 +9,7 @@
 //! tier uses the papers' parameters and rewrites `docs/validation/`. Every failure is collected;
 //! the exit code is non-zero if any check fails.
 
+mod analysis;
 mod augury;
 mod buckling;
 mod charts;
