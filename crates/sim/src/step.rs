@@ -352,7 +352,12 @@ impl Bfemp {
         } else {
             1
         };
-        let relag_below = solver.friction_update_below;
+        let policy = FrictionPolicy {
+            any: any_friction,
+            max_solves: max_fric,
+            update_below: solver.friction_update_below,
+            forcing: solver.friction_forcing,
+        };
         let (step, time) = (clock.step, clock.time);
         let failed = |(e, j): (femp_solver::SolveError, usize)| match e {
             femp_solver::SolveError::Interrupted { .. } => SimError::Interrupted { step, time },
@@ -381,7 +386,7 @@ impl Bfemp {
                 &s.x0,
                 (&s.fixed, &s.target),
                 params,
-                (any_friction, max_fric, relag_below),
+                policy,
                 report,
             )
         };
@@ -895,11 +900,14 @@ impl<const D: usize> Parts<'_, D> {
 /// The fixed point is reached when a solve's solution is where its friction operator was
 /// evaluated (to the Newton tolerance, in velocity units), or when neither the operator
 /// solved with nor the one at the solution has a friction term (then both are the same
-/// objective). With `relag_below > 0` the Newton iterations re-evaluate the operator at
-/// their iterate once an increment is below it (m/s), so most friction iterations cost one
-/// Newton iteration rather than a solve (at most half a solve's iterations update it);
-/// `max_fric` bounds the solves.
-#[allow(clippy::too_many_arguments)]
+/// objective) — in both cases by a solve to the full tolerance. `policy.max_solves` bounds
+/// the solves. With `policy.update_below > 0` the Newton iterations re-evaluate the operator
+/// at their iterate once an increment is below it (m/s), so most friction iterations cost one
+/// Newton iteration rather than a solve (at most half a solve's iterations update it). With
+/// `policy.forcing = η > 0` a solve whose operator is still moving is inexact: it stops at
+/// `max(tolerance, η × c)`, `c` the last change of the operator's point (m/s; before the first
+/// solve, from the step's start to Newton's start) — the tail of quadratic convergence is
+/// spent only on the last operator.
 pub(crate) fn friction_loop<const D: usize>(
     newton: &mut femp_solver::Newton,
     obj: &mut StepObjective<'_, D>,
@@ -907,14 +915,19 @@ pub(crate) fn friction_loop<const D: usize>(
     x0: &[f64],
     (fixed, target): (&[bool], &[f64]),
     params: &NewtonParams,
-    (any_friction, max_fric, relag_below): (bool, usize, f64),
+    policy: FrictionPolicy,
     report: &mut StepReport,
 ) -> Result<(), (femp_solver::SolveError, usize)> {
     obj.lag = Default::default();
-    if any_friction {
+    // The change of the operator's point the next solve's tolerance follows (m/s).
+    let mut moving = 0.0;
+    if policy.any {
         // Algorithm 1 lags the friction operator at the start of the step.
         obj.lag_friction(x0);
-        obj.lag.below = relag_below;
+        obj.lag.below = policy.update_below;
+        if policy.forcing > 0.0 {
+            moving = obj.lag_distance(x) / params.dt;
+        }
     }
     obj.prefer_exact = params.hessian == HessianStrategy::ExactWhenDefinite;
     let mut solves = 0;
@@ -922,20 +935,26 @@ pub(crate) fn friction_loop<const D: usize>(
         // Half a solve's iterations at most update the operator: the rest converge on it.
         obj.lag.limit = obj.lag.count + params.max_iterations / 2;
         solves += 1;
+        let tolerance = params.tolerance.max(policy.forcing * moving);
+        let exact = tolerance <= params.tolerance;
+        let solve_params = NewtonParams {
+            tolerance,
+            ..*params
+        };
         let stats = newton
-            .minimize_to(obj, x, fixed, target, params)
+            .minimize_to(obj, x, fixed, target, &solve_params)
             .map_err(|e| (e, obj.lag.count.max(1) - 1))?;
         report.friction_iterations = obj.lag.count.max(1);
         report.newton_iterations += stats.iterations;
         report.stats += &stats;
-        if !any_friction {
+        if !policy.any {
             break;
         }
         let change = obj.lag_distance(x) / params.dt;
-        if change < params.tolerance {
+        if change < params.tolerance && exact {
             break;
         }
-        if solves >= max_fric {
+        if solves >= policy.max_solves {
             // The last solve's friction operator stays (the forces reported with the step
             // are those of the state it solved for).
             report.friction_converged = false;
@@ -943,11 +962,33 @@ pub(crate) fn friction_loop<const D: usize>(
         }
         let before = obj.lag.terms;
         obj.lag_friction(x);
+        // A solve to the full tolerance follows once the operator has stopped moving.
+        moving = if change < params.tolerance {
+            0.0
+        } else {
+            change
+        };
         if before == 0 && obj.lag.terms == 0 {
-            break;
+            if exact {
+                break;
+            }
+            moving = 0.0;
         }
     }
     Ok(())
+}
+
+/// How a step's lagged-friction loop runs ([`friction_loop`]).
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct FrictionPolicy {
+    /// Whether any pair has friction (without, one solve).
+    pub(crate) any: bool,
+    /// The most solves (`solver.max_friction_iterations`).
+    pub(crate) max_solves: usize,
+    /// `solver.friction_update_below` (m/s).
+    pub(crate) update_below: f64,
+    /// `solver.friction_forcing`.
+    pub(crate) forcing: f64,
 }
 
 /// Start `x` at the predictor `x_hat` (targets for prescribed DOFs) when the straight path

@@ -531,10 +531,12 @@ fn contact_only_objective_is_inertia_and_barrier_3d() {
 /// The lagged-friction loop ends at its fixed point: re-evaluating the friction operator at
 /// the loop's solution and solving again moves no particle or vertex by more than the Newton
 /// tolerance over a step — with the operator updated between solves only and inside the
-/// Newton iterations too (`solver.friction_update_below`). Stopping one friction iteration
-/// early, or measuring the fixed point on grid nodes a particle barely touches, fails it.
-fn check_friction_fixed_point<const D: usize>(json: &str, below: f64) {
-    use crate::step::friction_loop;
+/// Newton iterations too (`solver.friction_update_below`), and with inexact solves while the
+/// operator moves (`solver.friction_forcing`). Stopping one friction iteration early, ending on
+/// an inexact solve, or measuring the fixed point on grid nodes a particle barely touches, fails
+/// it.
+fn check_friction_fixed_point<const D: usize>(json: &str, below: f64, forcing: f64) {
+    use crate::step::{FrictionPolicy, friction_loop};
     use femp_solver::{Newton, NewtonParams};
     let mut w = world::<D>(json);
     let setup = setup_of(&mut w);
@@ -556,11 +558,22 @@ fn check_friction_fixed_point<const D: usize>(json: &str, below: f64) {
         &setup.x0,
         problem,
         &params,
-        (true, 100, below),
+        FrictionPolicy {
+            any: true,
+            max_solves: 100,
+            update_below: below,
+            forcing,
+        },
         &mut report,
     )
     .unwrap();
     assert!(report.friction_converged, "{D}D: {report:?}");
+    // The loop ends on a solve to the full tolerance.
+    assert!(
+        report.stats.final_residual < tol,
+        "{D}D, forcing {forcing}: the last solve stopped at {:e} m/s",
+        report.stats.final_residual
+    );
     assert!(
         report.friction_iterations > 2 && obj.lag.terms > 0,
         "{D}D: friction must matter here ({} iterations, {} terms)",
@@ -575,15 +588,16 @@ fn check_friction_fixed_point<const D: usize>(json: &str, below: f64) {
     let moved = obj.lag_distance(&again) / w.clock.dt;
     assert!(
         moved < 2.0 * tol,
-        "{D}D, update below {below}: a further friction iteration moves a point by {moved:e} m/s"
+        "{D}D, update below {below}, forcing {forcing}: a further friction iteration moves a \
+         point by {moved:e} m/s"
     );
 }
 
 #[test]
 fn friction_loop_ends_at_its_fixed_point() {
-    for below in [0.0, 1e-2] {
-        check_friction_fixed_point::<2>(SCENE_2D, below);
-        check_friction_fixed_point::<3>(SCENE_3D, below);
+    for (below, forcing) in [(0.0, 0.0), (1e-2, 0.0), (0.0, 0.1), (0.0, 0.5)] {
+        check_friction_fixed_point::<2>(SCENE_2D, below, forcing);
+        check_friction_fixed_point::<3>(SCENE_3D, below, forcing);
     }
 }
 

@@ -643,6 +643,12 @@ fn solver(solver: &SolverSpec) -> Result<(), SimError> {
             return Err(invalid(field, format!("{v} must be finite and ≥ 0")));
         }
     }
+    if !(0.0..1.0).contains(&solver.friction_forcing) {
+        return Err(invalid(
+            "solver.friction_forcing",
+            format!("{} must be in [0, 1)", solver.friction_forcing),
+        ));
+    }
     Ok(())
 }
 

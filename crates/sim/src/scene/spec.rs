@@ -235,6 +235,10 @@ pub struct SolverSpec {
     /// Newton iterations re-evaluate the lagged friction operator at their iterate once an
     /// increment ‖p‖∞/Δt is below this (m/s; 0: only between solves, Algorithm 1).
     pub friction_update_below: f64,
+    /// The forcing η of inexact friction solves: while the friction operator still moves, a
+    /// solve stops at `max(tolerance, η × its last change)` (m/s); the last solve is to the full
+    /// tolerance (0: every solve to the full tolerance).
+    pub friction_forcing: f64,
     /// What Newton's convergence test measures the increment on.
     pub newton_test: NewtonTestSpec,
     /// When a step's Newton solve fails (iteration limit, stalled line search), solve the step
@@ -310,6 +314,7 @@ impl Default for SolverSpec {
             pcg_rtol_max: None,
             reuse_hessian_below: 0.0,
             friction_update_below: 0.0,
+            friction_forcing: 0.0,
             newton_test: NewtonTestSpec::Nodes,
             retry_other_projection: true,
             max_substeps: 1024,

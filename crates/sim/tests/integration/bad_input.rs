@@ -167,6 +167,10 @@ fn non_physical_values_are_named() {
     );
 
     let mut v = base();
+    v["solver"] = json!({ "friction_forcing": 1.0 });
+    expect_error(&v, &["solver.friction_forcing: 1 must be in [0, 1)"]);
+
+    let mut v = base();
     v["contact"]["friction"] = json!(-0.1);
     expect_error(&v, &["contact.friction", "non-negative"]);
 

@@ -364,6 +364,15 @@ fn slope_sticks_and_slides_with_friction_updated_in_newton_and_the_point_test() 
     check_slope_with(3, extra);
 }
 
+/// The same accelerations with inexact friction solves while the operator moves
+/// (`solver.friction_forcing`): the loop still ends at the fully implicit fixed point.
+#[test]
+fn slope_sticks_and_slides_with_inexact_friction_solves() {
+    let extra = r#", "friction_forcing": 0.5"#;
+    check_slope_with(2, extra);
+    check_slope_with(3, extra);
+}
+
 /// A 2D MPM block thrown down and sideways onto a fixed FEM plate with friction μ = 0.5, for
 /// `duration` s, with the given `solver` fields.
 fn sliding_block_2d(duration: f64, solver: &str) -> String {
