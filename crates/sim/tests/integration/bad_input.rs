@@ -459,6 +459,16 @@ fn scenes_too_large_for_the_machine_are_refused_before_anything_is_allocated() {
     assert!(scene::size::check(&e, &s.limits).is_ok());
 }
 
+/// A built world's particles, FEM vertices and FEM elements.
+fn built_counts<const D: usize>(w: &World<D>) -> (usize, usize, usize) {
+    let fem = &w.bodies.fem;
+    (
+        w.bodies.mpm.as_ref().map_or(0, |m| m.x.len()),
+        fem.iter().map(|b| b.x.len()).sum(),
+        fem.iter().map(|b| b.mesh.num_cells()).sum(),
+    )
+}
+
 #[test]
 fn the_size_estimate_matches_what_is_built() {
     // Particles (box sampling and generated meshes are counted exactly; round shapes to a few
@@ -473,32 +483,8 @@ fn the_size_estimate_matches_what_is_built() {
         let s = scene::load(&path).unwrap();
         let e = scene::size::estimate(&s).unwrap();
         let (particles, vertices, elements) = match s.spec.dimension {
-            2 => {
-                let w = World::<2>::build(s).unwrap();
-                let p = w.bodies.mpm.as_ref().map_or(0, |m| m.x.len());
-                (
-                    p,
-                    w.bodies.fem.iter().map(|b| b.x.len()).sum::<usize>(),
-                    w.bodies
-                        .fem
-                        .iter()
-                        .map(|b| b.mesh.num_cells())
-                        .sum::<usize>(),
-                )
-            }
-            _ => {
-                let w = World::<3>::build(s).unwrap();
-                let p = w.bodies.mpm.as_ref().map_or(0, |m| m.x.len());
-                (
-                    p,
-                    w.bodies.fem.iter().map(|b| b.x.len()).sum::<usize>(),
-                    w.bodies
-                        .fem
-                        .iter()
-                        .map(|b| b.mesh.num_cells())
-                        .sum::<usize>(),
-                )
-            }
+            2 => built_counts(&World::<2>::build(s).unwrap()),
+            _ => built_counts(&World::<3>::build(s).unwrap()),
         };
         let name = path.display();
         assert!(
