@@ -337,9 +337,7 @@ fn functions(text: &str) -> Vec<Function> {
                     .iter()
                     .rev()
                     .map(|l| l.trim())
-                    .take_while(|l| {
-                        l.starts_with("//") || l.starts_with("#[") || l.starts_with("pub")
-                    })
+                    .take_while(|l| l.starts_with("//") || l.starts_with("#["))
                     .any(|l| l.starts_with("// Long:"));
                 out.push(Function {
                     name,

@@ -117,14 +117,13 @@ impl Bfemp {
         mut w: Parts<'_, D>,
     ) -> Result<StepReport, SimError> {
         // The Newton solver checks the interrupt flag before every iteration.
-        let integrator = self.integrator;
         let saved = w.save();
-        let mut report = self.solve(&mut w, integrator)?;
+        let mut report = self.solve(&mut w)?;
         report.swept = w.bodies.sweep_pairs(&saved.at);
         if report.swept.tunnelled == 0 {
             return Ok(report);
         }
-        self.substepped(&mut w, integrator, &saved, report)
+        self.substepped(&mut w, &saved, report)
     }
 
     /// The step from `saved` again in substeps, after `first` (the whole step's attempt) let a
@@ -132,7 +131,6 @@ impl Bfemp {
     fn substepped<const D: usize>(
         &mut self,
         w: &mut Parts<'_, D>,
-        integrator: Integrator,
         saved: &Saved<D>,
         first: StepReport,
     ) -> Result<StepReport, SimError> {
@@ -144,7 +142,7 @@ impl Bfemp {
         while n <= max {
             w.restore(saved);
             w.set_dt(dt / n as f64);
-            let attempt = self.substeps(w, integrator, n, &mut work);
+            let attempt = self.substeps(w, n, &mut work);
             w.set_dt(dt);
             match attempt? {
                 Ok(mut report) => {
@@ -183,7 +181,6 @@ impl Bfemp {
     fn substeps<const D: usize>(
         &mut self,
         w: &mut Parts<'_, D>,
-        integrator: Integrator,
         n: usize,
         work: &mut StepReport,
     ) -> Result<Result<StepReport, crate::sweep::SweptReport>, SimError> {
@@ -191,7 +188,7 @@ impl Bfemp {
         let mut swept = crate::sweep::SweptReport::default();
         for _ in 0..n {
             let before = w.bodies.positions();
-            let mut r = self.solve(w, integrator)?;
+            let mut r = self.solve(w)?;
             r.swept = w.bodies.sweep_pairs(&before);
             work.add_work(&r);
             if r.swept.tunnelled > 0 {
@@ -204,16 +201,12 @@ impl Bfemp {
         Ok(Ok(last))
     }
 
-    /// One BFEMP step with `integrator` (its straight paths not checked): steps 1–2 in
-    /// `Parts::setup`, the contact-stabilised predictor's projection, the friction loop around
-    /// the minimisation ([`Bfemp::minimize`]), the contact forces and the acceleration carried
-    /// to the next step ([`contact_outcome`]), then steps 4–5 in `Parts::finish`.
-    fn solve<const D: usize>(
-        &mut self,
-        w: &mut Parts<'_, D>,
-        integrator: Integrator,
-    ) -> Result<StepReport, SimError> {
-        let dt = w.clock.dt;
+    /// One BFEMP step with the method's integrator (its straight paths not checked): steps
+    /// 1–2 in `Parts::setup`, the contact-stabilised predictor's projection, the friction loop
+    /// around the minimisation ([`Bfemp::minimize`]), the contact forces and the acceleration
+    /// carried to the next step ([`contact_outcome`]), then steps 4–5 in `Parts::finish`.
+    fn solve<const D: usize>(&mut self, w: &mut Parts<'_, D>) -> Result<StepReport, SimError> {
+        let (dt, integrator) = (w.clock.dt, self.integrator);
         let clock = std::time::Instant::now();
         let mut s = w.setup(integrator)?;
         let clock_setup = clock.elapsed().as_secs_f64() - s.transfers_s;

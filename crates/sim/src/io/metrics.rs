@@ -116,20 +116,12 @@ impl Cell {
     }
 }
 
-/// Which rows a column belongs to.
-#[derive(Clone, Copy, PartialEq, Eq)]
-enum Rows {
-    All,
-    Bfemp,
-    Augury,
-}
-
-/// One column of `metrics.csv`: its name, the dimension it exists in (0: both), the rows that
-/// have it, and its value.
+/// One column of `metrics.csv`: its name, the dimension it exists in (0: both), the method whose
+/// rows have it (`None`: every row), and its value.
 struct Column {
     name: &'static str,
     dim: usize,
-    rows: Rows,
+    rows: Option<Method>,
     cell: fn(&Metrics) -> Cell,
 }
 
@@ -137,16 +129,16 @@ const fn col(name: &'static str, cell: fn(&Metrics) -> Cell) -> Column {
     Column {
         name,
         dim: 0,
-        rows: Rows::All,
+        rows: None,
         cell,
     }
 }
 
-const fn only(rows: Rows, name: &'static str, cell: fn(&Metrics) -> Cell) -> Column {
+const fn only(method: Method, name: &'static str, cell: fn(&Metrics) -> Cell) -> Column {
     Column {
         name,
         dim: 0,
-        rows,
+        rows: Some(method),
         cell,
     }
 }
@@ -155,7 +147,7 @@ const fn in_dim(dim: usize, name: &'static str, cell: fn(&Metrics) -> Cell) -> C
     Column {
         name,
         dim,
-        rows: Rows::All,
+        rows: None,
         cell,
     }
 }
@@ -200,41 +192,36 @@ const COLUMNS: &[Column] = &[
     col("penetration_depth", |m| Cell::Real(m.penetration_depth, 6)),
     col("swept_entered", |m| Cell::Count(m.swept_entered)),
     col("swept_depth", |m| Cell::Real(m.swept_depth, 6)),
-    only(Rows::Augury, "augury_iterations", |m| {
+    only(Method::Augury, "augury_iterations", |m| {
         Cell::Count(m.augury_iterations)
     }),
-    only(Rows::Bfemp, "newton_iterations", |m| {
+    only(Method::Bfemp, "newton_iterations", |m| {
         Cell::Count(m.newton_iterations)
     }),
-    only(Rows::Bfemp, "friction_iterations", |m| {
+    only(Method::Bfemp, "friction_iterations", |m| {
         Cell::Count(m.friction_iterations)
     }),
     col("contact_terms", |m| Cell::Count(m.contact_terms)),
-    only(Rows::Bfemp, "backtracks", |m| Cell::Count(m.backtracks)),
-    only(Rows::Bfemp, "ccd_limited", |m| Cell::Count(m.ccd_limited)),
-    only(Rows::Bfemp, "exact_hessians", |m| {
+    only(Method::Bfemp, "backtracks", |m| Cell::Count(m.backtracks)),
+    only(Method::Bfemp, "ccd_limited", |m| Cell::Count(m.ccd_limited)),
+    only(Method::Bfemp, "exact_hessians", |m| {
         Cell::Count(m.exact_hessians)
     }),
-    only(Rows::Bfemp, "reused_hessians", |m| {
+    only(Method::Bfemp, "reused_hessians", |m| {
         Cell::Count(m.reused_hessians)
     }),
-    only(Rows::Bfemp, "pcg_iterations", |m| {
+    only(Method::Bfemp, "pcg_iterations", |m| {
         Cell::Count(m.pcg_iterations)
     }),
-    only(Rows::Bfemp, "substeps", |m| Cell::Count(m.substeps)),
+    only(Method::Bfemp, "substeps", |m| Cell::Count(m.substeps)),
     col("wall_s", |m| Cell::Real(m.wall_s, 6)),
 ];
 
 /// The columns of a row of `method`'s, in dimension `D`.
 fn columns<const D: usize>(method: Method) -> impl Iterator<Item = &'static Column> {
-    COLUMNS.iter().filter(move |c| {
-        (c.dim == 0 || c.dim == D)
-            && match c.rows {
-                Rows::All => true,
-                Rows::Bfemp => method == Method::Bfemp,
-                Rows::Augury => method == Method::Augury,
-            }
-    })
+    COLUMNS
+        .iter()
+        .filter(move |c| (c.dim == 0 || c.dim == D) && c.rows.is_none_or(|only| only == method))
 }
 
 const AXES: [&str; 3] = ["x", "y", "z"];
