@@ -237,21 +237,23 @@ fn run_case(
     steps: usize,
 ) -> Result<()> {
     let dir = root.join("fixtures/scenes");
-    let mut s = scene_with(&dir.join(case.file), set)?;
+    let s = scene_with(&dir.join(case.file), set)?;
     let set = set
         .iter()
         .map(|(k, v)| format!("{k}={v}"))
         .collect::<Vec<_>>()
         .join(" ");
-    s.spec.solver.ordering = ordering;
+    let mut spec = s.spec().clone();
+    spec.solver.ordering = ordering;
     if let Some(b) = below {
-        s.spec.solver.friction_update_below = b;
+        spec.solver.friction_update_below = b;
     }
     if let Some(t) = test {
-        s.spec.solver.newton_test = t;
+        spec.solver.newton_test = t;
     }
-    let below = s.spec.solver.friction_update_below;
-    let test = s.spec.solver.newton_test;
+    let s = s.with_spec(&spec)?;
+    let below = s.spec().solver.friction_update_below;
+    let test = s.spec().solver.newton_test;
     let mut world = World::<3>::build(s)?;
     for _ in 0..case.warm {
         world.step()?;

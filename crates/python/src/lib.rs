@@ -166,7 +166,7 @@ impl PyScene {
     /// 2 or 3.
     #[getter]
     fn dimension(&self) -> usize {
-        self.scene.spec.dimension
+        self.scene.spec().dimension
     }
 
     /// The directory relative mesh paths resolve against.
@@ -185,7 +185,8 @@ impl PyScene {
     fn __repr__(&self) -> String {
         format!(
             "femp.Scene(name={:?}, dimension={})",
-            self.scene.name, self.scene.spec.dimension
+            self.scene.name,
+            self.scene.spec().dimension
         )
     }
 }
@@ -213,7 +214,7 @@ fn run(
         ));
     }
     let scene = scene.scene.clone();
-    let dim = scene.spec.dimension;
+    let dim = scene.spec().dimension;
     let result: Result<RunResult, SimError> = interruptible(py, |flag| {
         let opts = RunOptions {
             progress,
@@ -390,7 +391,7 @@ impl PyWorld {
     fn new(py: Python<'_>, scene: &PyScene) -> PyResult<Self> {
         let scene = scene.scene.clone();
         let world = py
-            .detach(|| match scene.spec.dimension {
+            .detach(|| match scene.spec().dimension {
                 2 => femp::World::<2>::build(scene).map(|w| AnyWorld::D2(Box::new(w))),
                 _ => femp::World::<3>::build(scene).map(|w| AnyWorld::D3(Box::new(w))),
             })

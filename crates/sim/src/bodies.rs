@@ -3,7 +3,6 @@
 //! the point-in-body and point–facet queries both methods and the metrics use.
 
 use femp_contact::broad_phase::{Candidates, candidates_within};
-use femp_contact::friction::FrictionParams;
 use femp_contact::{ContactError, ContactPotential, ContactTerm};
 use femp_fem::{Boundary, ElasticBody, Material, Mesh};
 use femp_kernels::{Grid, Stencils};
@@ -11,6 +10,7 @@ use nalgebra::{SMatrix, SVector};
 
 use crate::build::inside_simplex;
 use crate::motion::Motion;
+use crate::scene::resolved::FrictionLaw;
 use crate::scene::{BoundaryCondition, BoundaryShape};
 
 /// What a world is made of, whatever the method advancing it.
@@ -242,8 +242,8 @@ pub struct Pair<const D: usize> {
     pub facets_of: usize,
     /// Barrier potential over that boundary.
     pub potential: ContactPotential<D>,
-    /// Friction (μ may be 0: then no friction work at all).
-    pub friction: FrictionParams,
+    /// Friction (μ may be 0: then no friction work at all); a step adds its Δt.
+    pub friction: FrictionLaw,
 }
 
 impl<const D: usize> Pair<D> {

@@ -131,7 +131,7 @@ fn trial_steps<const D: usize>(w: &mut femp::World<D>, n: usize) -> anyhow::Resu
     if n == 0 {
         return Ok(String::new());
     }
-    let total = femp::run::step_count(w.scene.spec.time.duration, w.clock.dt);
+    let total = femp::run::step_count(w.scene.spec().time.duration, w.clock.dt);
     let n = n.min(total);
     let (mut newton, mut contact) = (0usize, 0usize);
     let start = std::time::Instant::now();
@@ -300,7 +300,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                 femp::scene::size::human_bytes(s.limits.memory_bytes),
                 s.limits.steps
             );
-            let dim = s.spec.dimension;
+            let dim = s.spec().dimension;
             let name = s.name.clone();
             fn describe<const D: usize>(w: &femp::World<D>) -> String {
                 let particles = w.bodies.mpm.as_ref().map_or(0, |m| m.x.len());

@@ -65,7 +65,7 @@ pub struct RunResult {
 /// Run a scene, writing into `out_dir`. On failure the files written so far stay, the summary
 /// says why, and the error is returned.
 pub fn run(scene: Scene, out_dir: &Path, opts: &RunOptions) -> Result<RunResult, SimError> {
-    match scene.spec.dimension {
+    match scene.spec().dimension {
         2 => run_d::<2>(scene, out_dir, opts),
         _ => run_d::<3>(scene, out_dir, opts),
     }
@@ -120,7 +120,7 @@ pub fn run_with<const D: usize>(
             crate::io::output::describe_outputs(out_dir, out.removed())
         ));
     }
-    let total_steps = step_count(world.scene.spec.time.duration, world.clock.dt);
+    let total_steps = step_count(world.scene.spec().time.duration, world.clock.dt);
     let total_steps = opts.max_steps.map_or(total_steps, |m| m.min(total_steps));
     let scene_copy = match &world.scene.source {
         Some(text) => {
@@ -200,7 +200,7 @@ fn start_summary<const D: usize>(
         status: "running".into(),
         particles: world.bodies.mpm.as_ref().map_or(0, |m| m.x.len()),
         fem_vertices: world.bodies.fem.iter().map(|b| b.x.len()).sum(),
-        method: world.scene.spec.method,
+        method: world.scene.spec().method,
         augury: world
             .stepper
             .augury()
@@ -399,7 +399,7 @@ fn drive<const D: usize>(
     let name = summary.scene.clone();
     let frame_dt = world
         .scene
-        .spec
+        .spec()
         .time
         .frame_interval
         .unwrap_or(world.clock.dt);

@@ -134,7 +134,7 @@ impl Bfemp {
         saved: &Saved<D>,
         first: StepReport,
     ) -> Result<StepReport, SimError> {
-        let (dt, max) = (w.clock.dt, w.scene.spec.solver.max_substeps);
+        let (dt, max) = (w.clock.dt, w.scene.spec().solver.max_substeps);
         let mut worst = first.swept.clone();
         let mut work = StepReport::default();
         work.add_work(&first);
@@ -212,9 +212,9 @@ impl Bfemp {
         let clock_setup = clock.elapsed().as_secs_f64() - s.transfers_s;
         let clock = std::time::Instant::now();
         // 3. The friction loop around the minimisation.
-        let params = newton_params::<D>(&w.scene.spec.solver, dt);
+        let params = newton_params::<D>(&w.scene.spec().solver, dt);
         let weight = integrator.weight(dt);
-        let point_test = w.scene.spec.solver.newton_test == NewtonTestSpec::Points;
+        let point_test = w.scene.spec().solver.newton_test == NewtonTestSpec::Points;
         let any_friction = w.bodies.pairs.iter().any(|p| p.friction.mu > 0.0);
         let mut report = StepReport {
             friction_converged: true,
@@ -226,7 +226,7 @@ impl Bfemp {
         }
         let mut x = s.x0.clone();
         // Start the fixed DOFs where they are; Newton moves them to their targets.
-        let mut obj = s.objective(w.bodies, weight);
+        let mut obj = s.objective(w.bodies, dt, weight);
         obj.point_test = point_test;
         let _ = start_at_predictor(&mut obj, &s.x0, &s.fixed, &s.target, &s.x_hat, &mut x);
         report.setup_s = clock_setup + clock.elapsed().as_secs_f64();
@@ -283,6 +283,7 @@ impl Bfemp {
             w.bodies.mpm.as_ref(),
             &w.bodies.fem,
             &w.bodies.pairs,
+            w.clock.dt,
             s.dofs(),
             Inertia {
                 mass: &s.mass,
@@ -339,7 +340,7 @@ impl Bfemp {
         params: &NewtonParams,
         report: &mut StepReport,
     ) -> Result<(), SimError> {
-        let solver = &scene.spec.solver;
+        let solver = &scene.spec().solver;
         let max_fric = if any_friction {
             solver.max_friction_iterations
         } else {
@@ -608,13 +609,9 @@ impl<const D: usize> Parts<'_, D> {
 }
 
 impl<const D: usize> Parts<'_, D> {
-    /// Set Δt of the steps that follow (the world's and every pair's friction, whose
-    /// mollifier threshold is ε_v Δt).
+    /// Set Δt of the steps that follow.
     fn set_dt(&mut self, dt: f64) {
         self.clock.dt = dt;
-        for p in &mut self.bodies.pairs {
-            p.friction.dt = dt;
-        }
     }
 
     /// The state a BFEMP step changes.
@@ -1024,13 +1021,19 @@ impl<const D: usize> StepSetup<D> {
         }
     }
 
-    /// The incremental potential of this step over `bodies`, with the integrator's weight `w`
-    /// (as the step builds it).
-    pub(crate) fn objective<'a>(&'a self, bodies: &'a Bodies<D>, w: f64) -> StepObjective<'a, D> {
+    /// The incremental potential of this step (of length `dt`) over `bodies`, with the
+    /// integrator's weight `w` (as the step builds it).
+    pub(crate) fn objective<'a>(
+        &'a self,
+        bodies: &'a Bodies<D>,
+        dt: f64,
+        w: f64,
+    ) -> StepObjective<'a, D> {
         StepObjective::new(
             bodies.mpm.as_ref(),
             &bodies.fem,
             &bodies.pairs,
+            dt,
             self.dofs(),
             Inertia {
                 mass: &self.mass,

@@ -49,11 +49,11 @@ impl<const D: usize> Stepper<D> {
         bodies: &Bodies<D>,
         interrupted: impl Fn() -> bool,
     ) -> Result<Self, SimError> {
-        Ok(match scene.spec.method {
-            Method::Bfemp => Stepper::Bfemp(Box::new(Bfemp::new(scene.spec.time.integrator))),
+        Ok(match scene.spec().method {
+            Method::Bfemp => Stepper::Bfemp(Box::new(Bfemp::new(scene.spec().time.integrator))),
             Method::Augury => {
                 crate::overlap::check_augury_overlaps(&bodies.fem, interrupted)?;
-                Stepper::Augury(Box::new(AuguryState::build(&scene.spec, &bodies.fem)?))
+                Stepper::Augury(Box::new(AuguryState::build(scene.spec(), &bodies.fem)?))
             }
         })
     }
@@ -183,7 +183,7 @@ impl<const D: usize> Stepper<D> {
         match self {
             Stepper::Bfemp(_) => None,
             Stepper::Augury(_) => scene
-                .spec
+                .spec()
                 .augury
                 .as_ref()
                 .map_or(AugurySpec::default().penetration_limit, |a| {

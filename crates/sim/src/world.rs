@@ -11,7 +11,7 @@ use crate::error::SimError;
 use crate::motion::Motion;
 use crate::overlap::{fem_pair_overlap, points_inside};
 use crate::report::StepReport;
-use crate::scene::{BodySpec, Scene};
+use crate::scene::{BodySpec, Scene, resolved};
 pub use crate::step::Bfemp;
 pub use crate::stepper::Stepper;
 use crate::sweep::{Positions, SweptReport};
@@ -55,7 +55,7 @@ impl<const D: usize> World<D> {
         scene: Scene,
         interrupt: Option<std::sync::Arc<std::sync::atomic::AtomicBool>>,
     ) -> Result<Self, SimError> {
-        let spec = &scene.spec;
+        let spec = scene.spec();
         assert_eq!(
             spec.dimension, D,
             "World::<{D}>::build called for a {}D scene",
@@ -71,28 +71,48 @@ impl<const D: usize> World<D> {
         let mut fem: Vec<FemBody<D>> = Vec::new();
         // Index of each body in its own list, by scene order.
         let mut slot: Vec<(bool, usize)> = Vec::new();
-        for (i, b) in spec.bodies.iter().enumerate() {
+        for (i, b) in scene.resolved().bodies.iter().enumerate() {
             let f = format!("bodies[{i}]");
             match b {
-                BodySpec::Mpm(body) => {
-                    let m = spec.mpm.as_ref().expect("validated: mpm section present");
-                    let state = mpm.get_or_insert_with(|| crate::build::mpm::empty(m));
+                resolved::Body::Mpm {
+                    spec: body,
+                    material,
+                    grid,
+                } => {
+                    let state = match &mut mpm {
+                        Some(state) => state,
+                        None => mpm.insert(crate::build::mpm::empty(grid)?),
+                    };
                     let k = crate::build::mpm::add_body(
                         state,
-                        body,
-                        m.grid_spacing,
+                        (body, *material),
+                        grid.grid_spacing,
                         &scene.base_dir,
                         &f,
                     )?;
                     slot.push((true, k));
                 }
-                BodySpec::Fem(body) => {
+                resolved::Body::Fem {
+                    spec: body,
+                    material,
+                } => {
                     slot.push((false, fem.len()));
-                    fem.push(crate::build::fem::body(body, &scene.base_dir, &f)?);
+                    fem.push(crate::build::fem::body(
+                        (body, *material),
+                        &scene.base_dir,
+                        &f,
+                    )?);
                 }
             }
         }
-        let pairs = crate::build::pairs::contact_pairs(spec, &slot, mpm.as_ref(), &fem)?;
+        let names: Vec<&str> = spec.bodies.iter().map(BodySpec::name).collect();
+        let pairs = crate::build::pairs::contact_pairs(
+            &scene.resolved().pairs,
+            &names,
+            &slot,
+            mpm.as_ref(),
+            &fem,
+        )?;
         let boundaries = spec
             .boundaries
             .iter()
@@ -120,7 +140,7 @@ impl<const D: usize> World<D> {
             clock: Clock {
                 time: 0.0,
                 step: 0,
-                dt: scene.spec.time.dt,
+                dt: scene.dt(),
             },
             scene,
             bodies,
@@ -175,7 +195,12 @@ impl<const D: usize> World<D> {
         if !self.stepper.reports_contact_forces() {
             return Vec::new();
         }
-        self.scene.spec.bodies.iter().map(BodySpec::name).collect()
+        self.scene
+            .spec()
+            .bodies
+            .iter()
+            .map(BodySpec::name)
+            .collect()
     }
 
     /// Per body of [`World::force_bodies`]: the contact force (barrier and friction) and its

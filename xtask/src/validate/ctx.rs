@@ -135,7 +135,7 @@ impl Ctx {
     /// (through [`SceneSpec::to_json`]).
     pub fn fixture(&self, name: &str) -> Result<SceneSpec> {
         let path = self.root.join(format!("fixtures/scenes/{name}.json"));
-        Ok(femp::scene::load(&path)?.spec)
+        Ok(femp::scene::load(&path)?.spec().clone())
     }
 
     /// `spec` parsed back from its text and validated, as `femp run` would read it (relative
@@ -210,7 +210,7 @@ impl Ctx {
         mut probe: impl FnMut(&femp::World<D>) -> T,
     ) -> Result<(Result<RunResult, femp::SimError>, Vec<T>)> {
         let scene = self.scene(label, spec)?;
-        anyhow::ensure!(scene.spec.dimension == D, "{label}: not a {D}D scene");
+        anyhow::ensure!(scene.spec().dimension == D, "{label}: not a {D}D scene");
         let bar = self.bar(label, &scene);
         let out = self.dir.join(label);
         let opts = self.run_options(label, pictures);
@@ -236,7 +236,7 @@ impl Ctx {
     }
 
     pub(super) fn bar(&self, label: &str, scene: &femp::scene::Scene) -> indicatif::ProgressBar {
-        let steps = (scene.spec.time.duration / scene.spec.time.dt).ceil() as u64;
+        let steps = (scene.spec().time.duration / scene.spec().time.dt).ceil() as u64;
         let bar = self.progress.add(indicatif::ProgressBar::new(steps));
         bar.set_style(
             indicatif::ProgressStyle::with_template(
@@ -260,7 +260,7 @@ impl Ctx {
         let bar = self.bar(label, &scene);
         let out = self.dir.join(label);
         let opts = self.run_options(label, pictures);
-        let r = match scene.spec.dimension {
+        let r = match scene.spec().dimension {
             2 => run_with::<2>(scene, &out, &opts, |_, _: &Metrics| bar.inc(1)),
             _ => run_with::<3>(scene, &out, &opts, |_, _: &Metrics| bar.inc(1)),
         };

@@ -3,10 +3,10 @@
 
 use std::path::Path;
 
-use femp_fem::{Boundary, ElasticBody, lumped_masses};
+use femp_fem::{Boundary, ElasticBody, Material, lumped_masses};
 use nalgebra::SVector;
 
-use super::{make_material, rigid_velocity, transform_fn};
+use super::{rigid_velocity, transform_fn};
 use crate::bodies::FemBody;
 use crate::error::{SimError, invalid};
 use crate::motion::{Motion, angular_components};
@@ -14,9 +14,9 @@ use crate::scene::VertexSelector;
 use crate::scene::mesh::fem_mesh;
 use crate::scene::spec::FemBody as FemBodySpec;
 
-/// The FEM body of `body` (field path `f`, files relative to `base_dir`).
+/// The FEM body of `body` of material `mat` (field path `f`, files relative to `base_dir`).
 pub(crate) fn body<const D: usize>(
-    body: &FemBodySpec,
+    (body, mat): (&FemBodySpec, Material),
     base_dir: &Path,
     f: &str,
 ) -> Result<FemBody<D>, SimError> {
@@ -36,7 +36,6 @@ pub(crate) fn body<const D: usize>(
             .mapped(tf)
             .map_err(|e| invalid(format!("{f}.transform"), e.to_string()))?;
     }
-    let mat = make_material(material)?;
     let elastic =
         ElasticBody::new(&m, mat).map_err(|e| invalid(format!("{f}.mesh"), e.to_string()))?;
     let masses = lumped_masses(&m, material.rho)

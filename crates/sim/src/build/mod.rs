@@ -8,25 +8,13 @@ pub(crate) mod pairs;
 
 use std::path::Path;
 
+use femp_fem::Mesh;
 use femp_fem::mesh::gmsh;
-use femp_fem::{LinearElastic, Material, Mesh, NeoHookean};
 use nalgebra::{SMatrix, SVector, Vector3};
 
-use crate::error::{SimError, invalid};
+use crate::error::SimError;
 use crate::motion::rotation;
-use crate::scene::{MaterialSpec, ModelSpec, Sampling, ShapeSpec, TransformSpec};
-
-pub(crate) fn make_material(m: &MaterialSpec) -> Result<Material, SimError> {
-    let e = |e: femp_fem::FemError| invalid("material", e.to_string());
-    Ok(match m.model {
-        ModelSpec::NeoHookean => {
-            Material::NeoHookean(NeoHookean::from_young_poisson(m.youngs_modulus, m.nu).map_err(e)?)
-        }
-        ModelSpec::Linear => {
-            Material::Linear(LinearElastic::from_young_poisson(m.youngs_modulus, m.nu).map_err(e)?)
-        }
-    })
-}
+use crate::scene::{Sampling, ShapeSpec, TransformSpec};
 
 /// `v + ω × (x − c)` (2D: ω about z).
 pub(crate) fn rigid_velocity<const D: usize>(

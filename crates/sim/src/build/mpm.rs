@@ -3,21 +3,25 @@
 use std::path::Path;
 
 use femp_contact::particle_weight;
+use femp_fem::Material;
 use femp_kernels::{Grid, Kernel};
 use nalgebra::{SMatrix, SVector};
 
-use super::{make_material, rigid_velocity, sample_shape};
+use super::{rigid_velocity, sample_shape};
 use crate::bodies::{Mpm, MpmBody, Transfer};
-use crate::error::SimError;
+use crate::error::{SimError, invalid};
 use crate::motion::angular_components;
 use crate::scene::spec::{MpmBody as MpmBodySpec, MpmSpec, TransferSpec};
 
 /// The MPM state of the scene's `mpm` section: its grid and transfer, no particles yet.
-pub(crate) fn empty<const D: usize>(m: &MpmSpec) -> Mpm<D> {
-    let grid =
-        Grid::new(m.grid_spacing, SVector::zeros(), Kernel::Quadratic).expect("validated spacing");
-    Mpm {
-        stencils: grid.stencils(&[]).expect("empty stencils"),
+pub(crate) fn empty<const D: usize>(m: &MpmSpec) -> Result<Mpm<D>, SimError> {
+    let grid = Grid::new(m.grid_spacing, SVector::zeros(), Kernel::Quadratic)
+        .map_err(|e| invalid("mpm.grid_spacing", e.to_string()))?;
+    let stencils = grid
+        .stencils(&[])
+        .map_err(|e| invalid("mpm.grid_spacing", e.to_string()))?;
+    Ok(Mpm {
+        stencils,
         grid,
         transfer: match m.transfer {
             TransferSpec::Apic => Transfer::Apic,
@@ -35,14 +39,15 @@ pub(crate) fn empty<const D: usize>(m: &MpmSpec) -> Mpm<D> {
         body: Vec::new(),
         bodies: Vec::new(),
         contact_force: Vec::new(),
-    }
+    })
 }
 
-/// Sample `body` (field path `f`, files relative to `base_dir`) into `state`'s particles at
-/// rest shape, with its rigid initial velocity; its index among `state`'s bodies.
+/// Sample `body` of material `material_m` (field path `f`, files relative to `base_dir`) into
+/// `state`'s particles at rest shape, with its rigid initial velocity; its index among
+/// `state`'s bodies.
 pub(crate) fn add_body<const D: usize>(
     state: &mut Mpm<D>,
-    body: &MpmBodySpec,
+    (body, material_m): (&MpmBodySpec, Material),
     grid_spacing: f64,
     base_dir: &Path,
     f: &str,
@@ -64,7 +69,6 @@ pub(crate) fn add_body<const D: usize>(
         base_dir,
         &format!("{f}.shape"),
     )?;
-    let material_m = make_material(material)?;
     let start = state.x.len();
     let n = samples.x.len();
     let total_mass: f64 = samples.volume.iter().sum::<f64>() * material.rho;

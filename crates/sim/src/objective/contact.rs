@@ -6,7 +6,7 @@ use std::borrow::Cow;
 
 use femp_contact::broad_phase::{self, Candidates};
 use femp_contact::ccd::{self, CcdOptions};
-use femp_contact::friction::{self, FrictionTerm};
+use femp_contact::friction::{self, FrictionParams, FrictionTerm};
 use femp_contact::{ContactTerm, TermDerivatives};
 use femp_solver::Triplets;
 use nalgebra::{SMatrix, SVector};
@@ -21,6 +21,8 @@ pub(super) struct Contact<'a, const D: usize> {
     mpm: Option<&'a Mpm<D>>,
     fem: &'a [FemBody<D>],
     pairs: &'a [Pair<D>],
+    /// Per pair, its friction at the step's Δt.
+    friction_params: Vec<FrictionParams>,
     /// Friction terms lagged per pair (empty when μ = 0).
     friction: Vec<Vec<FrictionTerm<D>>>,
     cands: Candidates,
@@ -53,11 +55,18 @@ struct CcdScratch<const D: usize> {
 }
 
 impl<'a, const D: usize> Contact<'a, D> {
-    pub fn new(mpm: Option<&'a Mpm<D>>, fem: &'a [FemBody<D>], pairs: &'a [Pair<D>]) -> Self {
+    /// The contact term of `pairs` in a step of length `dt`.
+    pub fn new(
+        mpm: Option<&'a Mpm<D>>,
+        fem: &'a [FemBody<D>],
+        pairs: &'a [Pair<D>],
+        dt: f64,
+    ) -> Self {
         Self {
             mpm,
             fem,
             pairs,
+            friction_params: pairs.iter().map(|p| p.friction.at(dt)).collect(),
             friction: vec![Vec::new(); pairs.len()],
             cands: Candidates::default(),
             terms: Vec::new(),
@@ -135,7 +144,7 @@ impl<'a, const D: usize> Contact<'a, D> {
             if !self.friction[k].is_empty() {
                 self.fill_displacements(cfg, k);
                 let (dp, db) = &self.disp;
-                e += w * friction::energy(&self.pairs[k].friction, &self.friction[k], dp, db);
+                e += w * friction::energy(&self.friction_params[k], &self.friction[k], dp, db);
             }
         }
         e
@@ -209,7 +218,7 @@ impl<'a, const D: usize> Contact<'a, D> {
             if !self.friction[k].is_empty() {
                 self.fill_displacements(cfg, k);
                 let (dp, db) = &self.disp;
-                friction::derivatives(&self.pairs[k].friction, &self.friction[k], dp, db, fric);
+                friction::derivatives(&self.friction_params[k], &self.friction[k], dp, db, fric);
                 self.scatter(k, fric, dofs, w, Some(g), None);
             }
         }
@@ -426,7 +435,7 @@ impl<'a, const D: usize> Contact<'a, D> {
                         self.fill_displacements(cfg, k);
                         let (dp, db) = &self.disp;
                         friction::derivatives(
-                            &pair.friction,
+                            &self.friction_params[k],
                             &self.friction[k],
                             dp,
                             db,

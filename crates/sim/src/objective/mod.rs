@@ -135,13 +135,15 @@ pub(crate) struct FrictionLag<const D: usize> {
 }
 
 impl<'a, const D: usize> StepObjective<'a, D> {
-    /// The step's potential over the bodies, with their unknowns laid out by `dofs`, the
-    /// quadratic terms `inertia`, the step's start `x_start` (where the line search's feasible
-    /// paths begin) and the integrator weight `w`.
+    /// The potential of a step of length `dt` over the bodies, with their unknowns laid out by
+    /// `dofs`, the quadratic terms `inertia`, the step's start `x_start` (where the line
+    /// search's feasible paths begin) and the integrator weight `w`.
+    #[allow(clippy::too_many_arguments)]
     pub(crate) fn new(
         mpm: Option<&'a Mpm<D>>,
         fem: &'a [FemBody<D>],
         pairs: &'a [Pair<D>],
+        dt: f64,
         dofs: Dofs,
         inertia: Inertia<'a, D>,
         x_start: &'a [f64],
@@ -157,7 +159,7 @@ impl<'a, const D: usize> StepObjective<'a, D> {
             inertia,
             particles: ParticleElasticity::new(mpm),
             elements: ElementElasticity::new(fem),
-            contact: Contact::new(mpm, fem, pairs),
+            contact: Contact::new(mpm, fem, pairs, dt),
             motion: (Vec::new(), Vec::new()),
             prefer_exact: false,
             point_test: false,

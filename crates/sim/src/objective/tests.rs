@@ -51,7 +51,7 @@ fn objective_of<'a, const D: usize>(
         .expect("a BFEMP world")
         .integrator
         .weight(w.clock.dt);
-    setup.objective(&w.bodies, weight)
+    setup.objective(&w.bodies, w.clock.dt, weight)
 }
 
 /// A 2D scene: an MPM block whose lowest particles are within d̂ (5 mm) of a free FEM block, a second FEM block

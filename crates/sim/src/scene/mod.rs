@@ -1,22 +1,30 @@
 //! Scenes: JSON files (format in `docs/scenes.md`, types in [`spec`]), loaded with field paths
-//! in every error and validated before anything is built.
+//! in every error. Parsing checks every section and makes its typed parts ([`resolved`]) once:
+//! a [`Scene`] is only ever a checked one.
 
 pub mod mesh;
+pub mod resolved;
 pub mod size;
 pub mod spec;
 
 use std::path::{Path, PathBuf};
 
-use femp_fem::{Lame, material::check_density};
+use femp_contact::{BarrierHessian, LogBarrier};
+use femp_fem::{Lame, LinearElastic, Material, NeoHookean, material::check_density};
+use resolved::{FrictionLaw, PairLaw, Resolved};
 pub use spec::*;
 
 use crate::error::{SimError, invalid};
 
-/// A loaded and validated scene, with the directory relative paths resolve against.
+/// A parsed and checked scene with its typed parts, and the directory relative paths resolve
+/// against. Made only by [`load`], [`parse`] and [`Scene::with_spec`], so its spec has passed
+/// every check and its parts are its spec's.
 #[derive(Debug, Clone)]
 pub struct Scene {
     /// The parsed file.
-    pub spec: SceneSpec,
+    spec: SceneSpec,
+    /// What the parser made of it.
+    resolved: Resolved,
     /// Directory of the scene file.
     pub base_dir: PathBuf,
     /// Name (the `name` field or the file stem).
@@ -25,6 +33,37 @@ pub struct Scene {
     pub limits: size::Limits,
     /// The text the scene was parsed from (a run copies it into its output directory).
     pub source: Option<String>,
+}
+
+impl Scene {
+    /// The scene as parsed (to read; [`Scene::with_spec`] makes an edited copy).
+    pub fn spec(&self) -> &SceneSpec {
+        &self.spec
+    }
+
+    /// The typed parts the parser made of the spec.
+    pub fn resolved(&self) -> &Resolved {
+        &self.resolved
+    }
+
+    /// Time step Δt (s) the scene's steps start with.
+    pub fn dt(&self) -> f64 {
+        self.spec.time.dt
+    }
+
+    /// This scene with `spec` instead of its own, parsed from [`SceneSpec::to_json`] and checked
+    /// as a file would be (paths against the same directory, the same limits; named `spec.name`
+    /// or this scene's name).
+    pub fn with_spec(&self, spec: &SceneSpec) -> Result<Scene, SimError> {
+        let mut s = parse(
+            &spec.to_json(),
+            &format!("{} (edited)", self.name),
+            self.base_dir.clone(),
+            &self.name,
+        )?;
+        s.limits = self.limits;
+        Ok(s)
+    }
 }
 
 impl SceneSpec {
@@ -107,13 +146,14 @@ pub fn parse(
         field: "(root)".into(),
         message: format!("text after the scene object ({e})"),
     })?;
-    validate(&spec)?;
+    let resolved = resolve(&spec)?;
     let name = spec
         .name
         .clone()
         .unwrap_or_else(|| default_name.to_string());
     Ok(Scene {
         spec,
+        resolved,
         base_dir,
         name,
         limits: size::Limits::default(),
@@ -161,8 +201,9 @@ fn positive(field: &str, x: f64) -> Result<(), SimError> {
     }
 }
 
-fn material(field: &str, m: &MaterialSpec) -> Result<(), SimError> {
-    Lame::from_young_poisson(m.youngs_modulus, m.nu).map_err(|e| match e {
+/// The material of `m` (field path `field`).
+fn material(field: &str, m: &MaterialSpec) -> Result<Material, SimError> {
+    let lame = Lame::from_young_poisson(m.youngs_modulus, m.nu).map_err(|e| match e {
         femp_fem::FemError::BadMaterial {
             parameter,
             value,
@@ -179,7 +220,10 @@ fn material(field: &str, m: &MaterialSpec) -> Result<(), SimError> {
             format!("{} must be positive", m.rho),
         )
     })?;
-    Ok(())
+    Ok(match m.model {
+        ModelSpec::NeoHookean => Material::NeoHookean(NeoHookean::new(lame)),
+        ModelSpec::Linear => Material::Linear(LinearElastic::new(lame)),
+    })
 }
 
 fn angular(field: &str, a: &AngularSpec, d: usize) -> Result<(), SimError> {
@@ -381,26 +425,26 @@ fn thinnest(shape: &ShapeSpec) -> Option<f64> {
     }
 }
 
-/// Check what every body has (field path `f`): its material and its initial velocity and
-/// angular velocity, if given.
+/// Check what every body has (field path `f`): its material, which it returns, and its initial
+/// velocity and angular velocity, if given.
 fn material_and_motion(
     f: &str,
     m: &MaterialSpec,
     (velocity, angular_velocity): (Option<&[f64]>, Option<&AngularSpec>),
     d: usize,
-) -> Result<(), SimError> {
-    material(&format!("{f}.material"), m)?;
+) -> Result<Material, SimError> {
+    let material = material(&format!("{f}.material"), m)?;
     if let Some(v) = velocity {
         self::velocity(&format!("{f}.velocity"), v, d)?;
     }
     if let Some(w) = angular_velocity {
         angular(&format!("{f}.angular_velocity"), w, d)?;
     }
-    Ok(())
+    Ok(material)
 }
 
-/// Check an MPM body (field path `f`) of a `d`-dimensional scene.
-fn mpm_body(f: &str, body: &MpmBody, d: usize) -> Result<(), SimError> {
+/// Check an MPM body (field path `f`) of a `d`-dimensional scene; its material.
+fn mpm_body(f: &str, body: &MpmBody, d: usize) -> Result<Material, SimError> {
     let MpmBody {
         shape,
         particles_per_cell,
@@ -409,7 +453,7 @@ fn mpm_body(f: &str, body: &MpmBody, d: usize) -> Result<(), SimError> {
         angular_velocity,
         ..
     } = body;
-    material_and_motion(f, m, (velocity.as_deref(), angular_velocity.as_ref()), d)?;
+    let material = material_and_motion(f, m, (velocity.as_deref(), angular_velocity.as_ref()), d)?;
     if let Some(ppc) = particles_per_cell {
         let k = (*ppc as f64).powf(1.0 / d as f64).round() as usize;
         if *ppc == 0 || k.checked_pow(d as u32) != Some(*ppc) {
@@ -468,11 +512,11 @@ fn mpm_body(f: &str, body: &MpmBody, d: usize) -> Result<(), SimError> {
             }
         }
     }
-    Ok(())
+    Ok(material)
 }
 
-/// Check a FEM body (field path `f`) of a `d`-dimensional scene.
-fn fem_body(f: &str, body: &FemBody, d: usize) -> Result<(), SimError> {
+/// Check a FEM body (field path `f`) of a `d`-dimensional scene; its material.
+fn fem_body(f: &str, body: &FemBody, d: usize) -> Result<Material, SimError> {
     let FemBody {
         mesh,
         transform: t,
@@ -482,7 +526,7 @@ fn fem_body(f: &str, body: &FemBody, d: usize) -> Result<(), SimError> {
         prescribed,
         ..
     } = body;
-    material_and_motion(f, m, (velocity.as_deref(), angular_velocity.as_ref()), d)?;
+    let material = material_and_motion(f, m, (velocity.as_deref(), angular_velocity.as_ref()), d)?;
     if let Some(t) = t {
         transform(&format!("{f}.transform"), t, d)?;
     }
@@ -588,7 +632,7 @@ fn fem_body(f: &str, body: &FemBody, d: usize) -> Result<(), SimError> {
         }
         motion(&format!("{pf}.motion"), &p.motion, d)?;
     }
-    Ok(())
+    Ok(material)
 }
 
 /// Check the `solver` section.
@@ -653,8 +697,8 @@ fn solver(solver: &SolverSpec) -> Result<(), SimError> {
 }
 
 /// Check the `mpm` section of a scene with MPM bodies (present; a grid that resolves every MPM
-/// body).
-fn mpm_section(s: &SceneSpec) -> Result<(), SimError> {
+/// body); the section.
+fn mpm_section(s: &SceneSpec) -> Result<MpmSpec, SimError> {
     let Some(m) = &s.mpm else {
         return Err(invalid(
             "mpm",
@@ -685,12 +729,18 @@ fn mpm_section(s: &SceneSpec) -> Result<(), SimError> {
             format!("{} must be in [0, 1]", m.flip_ratio),
         ));
     }
-    Ok(())
+    Ok(m.clone())
 }
 
 /// Check the `contact` section (`None` is an error when `needed`: bodies that can touch), its
-/// pairs naming bodies of `names`.
-fn contact(contact: Option<&ContactSpec>, names: &[&str], needed: bool) -> Result<(), SimError> {
+/// pairs naming bodies of `names`; the contact laws of the pairs that may touch
+/// ([`pair_laws`]).
+fn contact(
+    contact: Option<&ContactSpec>,
+    names: &[&str],
+    is_mpm: &[bool],
+    needed: bool,
+) -> Result<Vec<PairLaw>, SimError> {
     match contact {
         Some(c) => {
             positive("contact.dhat", c.dhat)?;
@@ -736,16 +786,61 @@ fn contact(contact: Option<&ContactSpec>, names: &[&str], needed: bool) -> Resul
                     positive(&format!("{pf}.eps_v"), x)?;
                 }
             }
+            Ok(pair_laws(c, names, is_mpm))
         }
-        None if needed => {
-            return Err(invalid(
-                "contact",
-                "the scene has bodies that can touch but no `contact` section (dhat, kappa)",
-            ));
-        }
-        None => {}
+        None if needed => Err(invalid(
+            "contact",
+            "the scene has bodies that can touch but no `contact` section (dhat, kappa)",
+        )),
+        None => Ok(Vec::new()),
     }
-    Ok(())
+}
+
+/// The contact law of every pair of bodies that may touch (all but MPM–MPM pairs, which touch
+/// through the shared grid, and pairs whose `contact.pairs` entry disables them): the section's
+/// settings with the pair's own entry over them. The first entry naming a pair counts.
+fn pair_laws(c: &ContactSpec, names: &[&str], is_mpm: &[bool]) -> Vec<PairLaw> {
+    let hessian = match c.hessian {
+        BarrierHessianSpec::GaussNewton => BarrierHessian::GaussNewton,
+        BarrierHessianSpec::Projected => BarrierHessian::Projected,
+    };
+    let mut laws = Vec::new();
+    for i in 0..names.len() {
+        for j in i + 1..names.len() {
+            if is_mpm[i] && is_mpm[j] {
+                continue;
+            }
+            let over = c.pairs.iter().enumerate().find(|(_, p)| {
+                (p.bodies[0] == names[i] && p.bodies[1] == names[j])
+                    || (p.bodies[0] == names[j] && p.bodies[1] == names[i])
+            });
+            if over.is_some_and(|(_, p)| !p.enabled) {
+                continue;
+            }
+            let pick = |own: fn(&PairSpec) -> Option<f64>, all: f64| {
+                over.and_then(|(_, p)| own(p)).unwrap_or(all)
+            };
+            let dhat_field = match over {
+                Some((k, p)) if p.dhat.is_some() => format!("contact.pairs[{k}].dhat"),
+                _ => "contact.dhat".to_string(),
+            };
+            laws.push(PairLaw {
+                bodies: [i, j],
+                // Both checked positive and finite above, as `LogBarrier::new` would.
+                barrier: LogBarrier {
+                    dhat: pick(|p| p.dhat, c.dhat),
+                    kappa: pick(|p| p.kappa, c.kappa),
+                },
+                hessian,
+                friction: FrictionLaw {
+                    mu: pick(|p| p.friction, c.friction),
+                    eps_v: pick(|p| p.eps_v, c.eps_v),
+                },
+                dhat_field,
+            });
+        }
+    }
+    laws
 }
 
 /// Check the level-set `boundaries` (only with MPM bodies: they act on the grid).
@@ -795,8 +890,9 @@ fn boundaries(s: &SceneSpec, any_mpm: bool) -> Result<(), SimError> {
     Ok(())
 }
 
-/// Check every field of a parsed scene (ranges, lengths, names, consistency).
-pub fn validate(s: &SceneSpec) -> Result<(), SimError> {
+/// Check every field of a parsed scene (ranges, lengths, names, consistency), section by
+/// section, and make its typed parts.
+fn resolve(s: &SceneSpec) -> Result<Resolved, SimError> {
     let d = s.dimension;
     if d != 2 && d != 3 {
         return Err(invalid("dimension", format!("{d}: must be 2 or 3")));
@@ -824,8 +920,9 @@ pub fn validate(s: &SceneSpec) -> Result<(), SimError> {
         return Err(invalid("bodies", "the scene has no bodies"));
     }
     let mut names: Vec<&str> = Vec::new();
-    let mut any_mpm = false;
-    let mut n_fem = 0;
+    let mut is_mpm: Vec<bool> = Vec::new();
+    let mut materials = Vec::with_capacity(s.bodies.len());
+    // Each body is checked before the sections that refer to bodies.
     for (i, b) in s.bodies.iter().enumerate() {
         let f = format!("bodies[{i}]");
         let name = b.name();
@@ -836,23 +933,40 @@ pub fn validate(s: &SceneSpec) -> Result<(), SimError> {
             &names,
         )?;
         names.push(name);
-        match b {
-            BodySpec::Mpm(body) => {
-                any_mpm = true;
-                mpm_body(&f, body, d)?;
-            }
-            BodySpec::Fem(body) => {
-                n_fem += 1;
-                fem_body(&f, body, d)?;
-            }
-        }
+        is_mpm.push(matches!(b, BodySpec::Mpm(_)));
+        materials.push(match b {
+            BodySpec::Mpm(body) => mpm_body(&f, body, d)?,
+            BodySpec::Fem(body) => fem_body(&f, body, d)?,
+        });
     }
-    if any_mpm {
-        mpm_section(s)?;
-    }
+    let any_mpm = is_mpm.contains(&true);
+    let n_fem = is_mpm.iter().filter(|m| !**m).count();
+    // The `mpm` section is checked (once) where the first MPM body needs it.
+    let mut grid: Option<MpmSpec> = None;
+    let bodies = s
+        .bodies
+        .iter()
+        .zip(materials)
+        .map(|(b, material)| {
+            Ok(match b {
+                BodySpec::Mpm(spec) => resolved::Body::Mpm {
+                    spec: spec.clone(),
+                    material,
+                    grid: match &grid {
+                        Some(g) => g.clone(),
+                        None => grid.insert(mpm_section(s)?).clone(),
+                    },
+                },
+                BodySpec::Fem(spec) => resolved::Body::Fem {
+                    spec: spec.clone(),
+                    material,
+                },
+            })
+        })
+        .collect::<Result<Vec<_>, SimError>>()?;
     let needs_contact = s.method == Method::Bfemp && ((any_mpm && n_fem > 0) || n_fem > 1);
     augury(s)?;
-    contact(s.contact.as_ref(), &names, needs_contact)?;
+    let pairs = contact(s.contact.as_ref(), &names, &is_mpm, needs_contact)?;
     boundaries(s, any_mpm)?;
     if s.method == Method::Augury && any_mpm {
         return Err(invalid(
@@ -860,7 +974,7 @@ pub fn validate(s: &SceneSpec) -> Result<(), SimError> {
             "`augury` simulates FEM bodies only; MPM bodies need `bfemp`",
         ));
     }
-    Ok(())
+    Ok(Resolved { bodies, pairs })
 }
 
 /// The method-specific sections: `augury` only with the augury method, `contact` only with BFEMP.

@@ -336,7 +336,7 @@ fn mesh_field(mesh: &MeshSpec) -> &'static str {
 
 /// Estimate what a (validated) scene costs.
 pub fn estimate(scene: &Scene) -> Result<Estimate, SimError> {
-    let spec = &scene.spec;
+    let spec = scene.spec();
     let d = spec.dimension;
     let cost = costs(d, spec.method);
     let mut e = Estimate {

@@ -482,7 +482,7 @@ fn the_size_estimate_matches_what_is_built() {
         }
         let s = scene::load(&path).unwrap();
         let e = scene::size::estimate(&s).unwrap();
-        let (particles, vertices, elements) = match s.spec.dimension {
+        let (particles, vertices, elements) = match s.spec().dimension {
             2 => built_counts(&World::<2>::build(s).unwrap()),
             _ => built_counts(&World::<3>::build(s).unwrap()),
         };

@@ -15,7 +15,7 @@ fn every_fixture_scene_builds() {
             continue;
         }
         let scene = femp::scene::load(&path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
-        let built = match scene.spec.dimension {
+        let built = match scene.spec().dimension {
             2 => femp::World::<2>::build(scene).map(|_| ()),
             _ => femp::World::<3>::build(scene).map(|_| ()),
         };
@@ -41,17 +41,17 @@ fn every_fixture_scene_round_trips_through_its_typed_spec() {
             continue;
         }
         let scene = femp::scene::load(&path).unwrap();
-        let text = scene.spec.to_json();
+        let text = scene.spec().to_json();
         let again = femp::scene::parse(&text, "round trip", scene.base_dir.clone(), "again")
             .unwrap_or_else(|e| panic!("{}: written back as\n{text}\n: {e}", path.display()));
         assert_eq!(
-            format!("{:?}", again.spec),
-            format!("{:?}", scene.spec),
+            format!("{:?}", again.spec()),
+            format!("{:?}", scene.spec()),
             "{}",
             path.display()
         );
         // Written back, it is the same text again (nothing left to normalise).
-        assert_eq!(again.spec.to_json(), text, "{}", path.display());
+        assert_eq!(again.spec().to_json(), text, "{}", path.display());
         n += 1;
     }
     assert!(n >= 10, "only {n} fixtures");
@@ -103,7 +103,7 @@ fn the_docs_scene_built_in_code_is_the_fixture() {
     let fixture =
         Path::new(env!("CARGO_MANIFEST_DIR")).join("../../fixtures/scenes/block_on_plate.json");
     let committed = femp::scene::load(&fixture).unwrap();
-    assert_eq!(format!("{spec:?}"), format!("{:?}", committed.spec));
+    assert_eq!(format!("{spec:?}"), format!("{:?}", committed.spec()));
     let scene = femp::scene::parse(
         &spec.to_json(),
         "block_on_plate",

@@ -345,7 +345,7 @@ fn exercise(text: &str, base_dir: PathBuf) -> Result<usize, String> {
             scene::size::check(&estimate, &s.limits)?;
             let step = estimate.memory_bytes <= STEP_MEMORY;
             // Built, not stepped, above STEP_MEMORY: steps of the large fixtures take seconds.
-            match s.spec.dimension {
+            match s.spec().dimension {
                 2 => build_and_step::<2>(s, step, &mut timing),
                 _ => build_and_step::<3>(s, step, &mut timing),
             }

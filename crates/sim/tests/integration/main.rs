@@ -9,6 +9,7 @@ mod cli;
 mod fixtures;
 mod fuzz;
 mod pictures;
+mod resolved;
 mod sampling;
 mod stabilized;
 mod trust;

@@ -207,7 +207,7 @@ fn face_distance<const D: usize>(p: &SVector<f64, D>, f: &[SVector<f64, D>]) -> 
 fn run_checked<const D: usize>(json: &str) -> (usize, usize, Option<String>) {
     let s = scene::parse(json, "test.json", Path::new(".").to_path_buf(), "test").unwrap();
     let mut world = World::<D>::build(s).unwrap();
-    let steps = femp::run::step_count(world.scene.spec.time.duration, world.clock.dt);
+    let steps = femp::run::step_count(world.scene.spec().time.duration, world.clock.dt);
     let mut most = 1;
     for k in 0..steps {
         let p0 = world.bodies.mpm.as_ref().unwrap().x.clone();
