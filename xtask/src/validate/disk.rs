@@ -25,8 +25,9 @@ use femp::scene::{
 };
 
 use super::analysis::hertz::{self, A_LO, E, Load, NU, R};
-use super::analysis::pareto::{Point, fronts, max_penetrations, pareto_chart};
+use super::analysis::pareto::{Point, fronts, max_penetrations, pareto_chart, run_rows};
 use super::charts::{self, Chart, Series};
+use super::experiment::Experiment;
 use super::scenes::{bodies, linear, moving, penalty, prescribed, rectangle};
 use super::{Check, Ctx, Outcome, Pictures, Tier};
 
@@ -135,19 +136,24 @@ fn width_note(what: &str, samples: &[(f64, f64)]) -> String {
     }
 }
 
+/// What one run gives: its point (if it reached the fit window), why it gave none, its
+/// `(a, F)` curve and the note on its contact width.
+#[derive(Default)]
+pub(super) struct DiskRun {
+    point: Option<Point>,
+    failed: Option<String>,
+    curve: Option<(String, Vec<(f64, f64)>)>,
+    note: Option<String>,
+}
+
 /// One explicit run: `(a, F)` per step (the disk's lower half under the plate).
-#[allow(clippy::too_many_arguments)]
 fn explicit_run(
     ctx: &Ctx,
     cfg: Cfg,
     method: &'static str,
     s: f64,
     augury: &AugurySpec,
-    points: &mut Vec<Point>,
-    curves: &mut Vec<(String, Vec<(f64, f64)>)>,
-    failed: &mut Vec<String>,
-    notes: &mut Vec<String>,
-) -> Result<()> {
+) -> Result<DiskRun> {
     // Place the plates from the mesh's extreme vertices, and take Δt from the stability estimate.
     let probe = ctx.probe(&explicit_scene(s, None, 1e-7, cfg.duration, augury))?;
     let ys = probe.bodies.fem[0]
@@ -185,15 +191,16 @@ fn explicit_run(
         },
     )?;
     let samples: Vec<(f64, f64)> = samples.into_iter().flatten().collect();
+    let mut run = DiskRun::default();
     match r {
         Ok(r) => {
             let (k, n) = fit(&samples, cfg.a_hi);
             if n < 3 {
-                failed.push(format!(
+                run.failed = Some(format!(
                     "{method}, s = {s}: only {n} steps in the load window"
                 ));
             } else {
-                points.push(Point {
+                run.point = Some(Point {
                     method,
                     h: s,
                     dt,
@@ -203,20 +210,23 @@ fn explicit_run(
                     depth: super::analysis_depth(&r.summary),
                 });
             }
-            notes.push(width_note(&format!("{method}, s = {s}"), &samples));
-            curves.push((format!("{method}, s = {s}"), samples));
+            run.note = Some(width_note(&format!("{method}, s = {s}"), &samples));
+            run.curve = Some((format!("{method}, s = {s}"), samples));
         }
-        Err(e) => failed.push(format!("{method}, s = {s}: {e}")),
+        Err(e) => run.failed = Some(format!("{method}, s = {s}: {e}")),
     }
-    Ok(())
+    Ok(run)
 }
 
-/// The experiment.
-pub fn run(ctx: &Ctx) -> Result<Outcome> {
-    let mut out = Outcome::default();
-    // Quick: half the compression (Hertz's a up to 0.06 m), BFEMP on two grids, the explicit
-    // methods on the coarsest mesh. Full: a up to 0.09 m, three resolutions each.
-    let (cfg, grids, sizes): (Cfg, &[f64], &[f64]) = match ctx.tier {
+/// The disk between plates.
+#[derive(Default)]
+pub(super) struct Disk;
+
+/// Quick: half the compression (Hertz's a up to 0.06 m), BFEMP on two grids, the explicit
+/// methods on the coarsest mesh. Full: a up to 0.09 m, three resolutions each. The run length
+/// and fit window, BFEMP's grids and the explicit methods' contact-zone element sizes.
+fn setup(tier: Tier) -> (Cfg, &'static [f64], &'static [f64]) {
+    match tier {
         Tier::Quick => (
             Cfg {
                 duration: 0.015,
@@ -233,173 +243,221 @@ pub fn run(ctx: &Ctx) -> Result<Outcome> {
             &[0.1, 0.05, 0.025],
             &[0.02, 0.01, 0.005],
         ),
-    };
-    let mut points = Vec::new();
-    let mut curves = Vec::new();
-    let mut failed = Vec::new();
-    for &h in grids {
-        let load = Load {
-            speed: SPEED,
-            dt: 1e-3,
-            duration: cfg.duration,
-        };
-        let pictures = (h == 0.05)
-            .then(|| Pictures::keys("Disk between plates, BFEMP, h = 0.05, end", 2).last_only());
-        let (samples, _, r) = hertz::run_model(ctx, "linear", h, load, pictures)?;
-        let samples: Vec<(f64, f64)> = samples.iter().map(|p| (p.a_moment, p.force)).collect();
-        let (k, n) = fit(&samples, cfg.a_hi);
-        if n < 3 {
-            failed.push(format!("BFEMP, h = {h}: only {n} steps in the load window"));
-        } else {
-            points.push(Point {
-                method: "BFEMP (MPM disk)",
-                h,
-                dt: load.dt,
-                wall: r.summary.wall_s,
-                error: (k / k_hertz() - 1.0).abs(),
-                penetrations: r.summary.max_penetrations,
-                depth: super::analysis_depth(&r.summary),
-            });
+    }
+}
+
+/// The methods, in the order of the report and the charts.
+const METHODS: [&str; 4] = [
+    "BFEMP (MPM disk)",
+    "augury APIC",
+    "augury PIC",
+    "penalty baseline",
+];
+
+/// One run: BFEMP on grid `h`, or an explicit method with element size `s`.
+pub(super) enum Case {
+    Bfemp {
+        h: f64,
+    },
+    Explicit {
+        method: &'static str,
+        s: f64,
+        augury: Box<AugurySpec>,
+    },
+}
+
+/// The points of `runs`.
+fn points_of(runs: &[(Case, DiskRun)]) -> Vec<Point> {
+    runs.iter().filter_map(|(_, r)| r.point.clone()).collect()
+}
+
+impl Experiment for Disk {
+    type Case = Case;
+    type Measured = DiskRun;
+
+    fn cases(&self, ctx: &Ctx) -> Result<Vec<Case>> {
+        let (_, grids, sizes) = setup(ctx.tier);
+        let mut cases: Vec<Case> = grids.iter().map(|&h| Case::Bfemp { h }).collect();
+        for &s in sizes {
+            let augury = |transfer| AugurySpec {
+                grid_spacing: Some(s),
+                transfer,
+                model: AuguryModelSpec::Friction,
+                friction: 1.0,
+                obstacles: AuguryObstaclesSpec::Kinematic,
+                ..AugurySpec::default()
+            };
+            let variants: [(&'static str, AugurySpec); 3] = [
+                ("augury APIC", augury(AuguryTransferSpec::Apic)),
+                ("augury PIC", augury(AuguryTransferSpec::Pic)),
+                ("penalty baseline", penalty(E, 0.5 * s)),
+            ];
+            for (method, aug) in variants {
+                cases.push(Case::Explicit {
+                    method,
+                    s,
+                    augury: Box::new(aug),
+                });
+            }
         }
+        Ok(cases)
+    }
+
+    fn measure(&self, ctx: &Ctx, case: &Case) -> Result<DiskRun> {
+        let (cfg, _, _) = setup(ctx.tier);
+        match case {
+            &Case::Bfemp { h } => {
+                let load = Load {
+                    speed: SPEED,
+                    dt: 1e-3,
+                    duration: cfg.duration,
+                };
+                let pictures = (h == 0.05).then(|| {
+                    Pictures::keys("Disk between plates, BFEMP, h = 0.05, end", 2).last_only()
+                });
+                let (samples, _, r) = hertz::run_model(ctx, "linear", h, load, pictures)?;
+                let samples: Vec<(f64, f64)> =
+                    samples.iter().map(|p| (p.a_moment, p.force)).collect();
+                let (k, n) = fit(&samples, cfg.a_hi);
+                let mut run = DiskRun::default();
+                if n < 3 {
+                    run.failed = Some(format!("BFEMP, h = {h}: only {n} steps in the load window"));
+                } else {
+                    run.point = Some(Point {
+                        method: "BFEMP (MPM disk)",
+                        h,
+                        dt: load.dt,
+                        wall: r.summary.wall_s,
+                        error: (k / k_hertz() - 1.0).abs(),
+                        penetrations: r.summary.max_penetrations,
+                        depth: super::analysis_depth(&r.summary),
+                    });
+                }
+                run.note = Some(width_note(&format!("BFEMP, h = {h}"), &samples));
+                run.curve = Some((format!("BFEMP, h = {h}"), samples));
+                Ok(run)
+            }
+            Case::Explicit { method, s, augury } => explicit_run(ctx, cfg, method, *s, augury),
+        }
+    }
+
+    fn checks(&self, ctx: &Ctx, runs: &[(Case, DiskRun)], out: &mut Outcome) -> Result<()> {
+        let (cfg, grids, sizes) = setup(ctx.tier);
         out.notes
-            .push(width_note(&format!("BFEMP, h = {h}"), &samples));
-        curves.push((format!("BFEMP, h = {h}"), samples));
-    }
-    for &s in sizes {
-        let augury = |transfer| AugurySpec {
-            grid_spacing: Some(s),
-            transfer,
-            model: AuguryModelSpec::Friction,
-            friction: 1.0,
-            obstacles: AuguryObstaclesSpec::Kinematic,
-            ..AugurySpec::default()
-        };
-        let variants: [(&'static str, AugurySpec); 3] = [
-            ("augury APIC", augury(AuguryTransferSpec::Apic)),
-            ("augury PIC", augury(AuguryTransferSpec::Pic)),
-            ("penalty baseline", penalty(E, 0.5 * s)),
-        ];
-        for (method, aug) in &variants {
-            explicit_run(
-                ctx,
-                cfg,
-                method,
-                s,
-                aug,
-                &mut points,
-                &mut curves,
-                &mut failed,
-                &mut out.notes,
-            )?;
+            .extend(runs.iter().filter_map(|(_, r)| r.note.clone()));
+        let failed: Vec<&String> = runs.iter().filter_map(|(_, r)| r.failed.as_ref()).collect();
+        let points = points_of(runs);
+        let methods = METHODS;
+        run_rows(&points, &methods, "disk: ", out);
+        out.checks.push(Check::count(
+            "disk: BFEMP penetrations, max over all runs and steps",
+            max_penetrations(&points, "BFEMP"),
+            0,
+        ));
+        out.checks.push(Check::count(
+            "disk: runs that stopped or never reached the fit window",
+            failed.len(),
+            0,
+        ));
+        for f in &failed {
+            out.notes.push(format!("Disk run without a result: {f}"));
         }
-    }
-    let methods = [
-        "BFEMP (MPM disk)",
-        "augury APIC",
-        "augury PIC",
-        "penalty baseline",
-    ];
-    let series = fronts(&points, &methods, "disk: ", &mut out);
-    out.checks.push(Check::count(
-        "disk: BFEMP penetrations, max over all runs and steps",
-        max_penetrations(&points, "BFEMP"),
-        0,
-    ));
-    out.checks.push(Check::count(
-        "disk: runs that stopped or never reached the fit window",
-        failed.len(),
-        0,
-    ));
-    for f in &failed {
-        out.notes.push(format!("Disk run without a result: {f}"));
-    }
-    // Each method's error must shrink from its coarsest to its finest resolution.
-    for m in methods {
-        let mut pts: Vec<&Point> = points.iter().filter(|p| p.method == m).collect();
-        pts.sort_by(|a, b| b.h.total_cmp(&a.h));
-        if let (Some(c), Some(f)) = (pts.first(), pts.last())
-            && pts.len() > 1
-        {
-            out.checks.push(Check::holds(
-                &format!("disk: {m}: |F/a² error| shrinks from {} to {}", c.h, f.h),
-                format!("{:.1} % → {:.1} %", 100.0 * c.error, 100.0 * f.error),
-                "shrinks",
-                "—",
-                f.error < c.error,
-            ));
+        // Each method's error must shrink from its coarsest to its finest resolution.
+        for m in methods {
+            let mut pts: Vec<&Point> = points.iter().filter(|p| p.method == m).collect();
+            pts.sort_by(|a, b| b.h.total_cmp(&a.h));
+            if let (Some(c), Some(f)) = (pts.first(), pts.last())
+                && pts.len() > 1
+            {
+                out.checks.push(Check::holds(
+                    &format!("disk: {m}: |F/a² error| shrinks from {} to {}", c.h, f.h),
+                    format!("{:.1} % → {:.1} %", 100.0 * c.error, 100.0 * f.error),
+                    "shrinks",
+                    "—",
+                    f.error < c.error,
+                ));
+            }
         }
+        out.notes.push(format!(
+            "Disk between plates: error |k_fit/k − 1| of F = k a² (plane Hertz, k = πE/(4(1−ν²)R) = \
+             {:.4e} N/m²) fitted over the loads at which Hertz's half-width is {A_LO}–{} m; a from the \
+             second moment of the contact forces along the fixed plate (BFEMP: the barrier forces on \
+             the particles; explicit methods: the plate's reaction per vertex). {} s of compression. \
+             BFEMP grids h ∈ {grids:?} m; explicit methods' contact-zone element sizes \
+             s ∈ {sizes:?} m.",
+            k_hertz(),
+            cfg.a_hi,
+            cfg.duration
+        ));
+        Ok(())
     }
-    out.notes.push(format!(
-        "Disk between plates: error |k_fit/k − 1| of F = k a² (plane Hertz, k = πE/(4(1−ν²)R) = \
-         {:.4e} N/m²) fitted over the loads at which Hertz's half-width is {A_LO}–{} m; a from the \
-         second moment of the contact forces along the fixed plate (BFEMP: the barrier forces on \
-         the particles; explicit methods: the plate's reaction per vertex). {} s of compression. \
-         BFEMP grids h ∈ {grids:?} m; explicit methods' contact-zone element sizes \
-         s ∈ {sizes:?} m.",
-        k_hertz(),
-        cfg.a_hi,
-        cfg.duration
-    ));
-    let png = pareto_chart(
-        ctx,
-        "compare_disk",
-        "Disk pressed between plates: Hertz error against wall time (Pareto fronts)",
-        "relative error of F/a²",
-        series,
-    )?;
-    out.charts
-        .push(("Speed against accuracy: disk between plates".into(), png));
-    // F against a for every run, with Hertz.
-    let a_max = curves
-        .iter()
-        .flat_map(|c| c.1.iter().map(|p| p.0))
-        .filter(|a| a.is_finite())
-        .fold(0.0f64, f64::max)
-        .min(0.3);
-    // One colour per method (in `methods`' order; the label names the resolution).
-    let colour = |label: &str| {
-        ["BFEMP", "augury APIC", "augury PIC", "penalty"]
+
+    fn charts(&self, ctx: &Ctx, runs: &[(Case, DiskRun)], out: &mut Outcome) -> Result<()> {
+        let series = fronts(&points_of(runs), &METHODS);
+        let curves: Vec<(String, Vec<(f64, f64)>)> =
+            runs.iter().filter_map(|(_, r)| r.curve.clone()).collect();
+        let png = pareto_chart(
+            ctx,
+            "compare_disk",
+            "Disk pressed between plates: Hertz error against wall time (Pareto fronts)",
+            "relative error of F/a²",
+            series,
+        )?;
+        out.charts
+            .push(("Speed against accuracy: disk between plates".into(), png));
+        // F against a for every run, with Hertz.
+        let a_max = curves
             .iter()
-            .position(|m| label.starts_with(m))
-            .unwrap_or(0)
-    };
-    let mut fa: Vec<Series> = curves
-        .into_iter()
-        .map(|(label, pts)| Series {
-            colour: colour(&label),
-            label,
-            points: pts.into_iter().filter(|p| p.0 <= a_max).collect(),
-            dashed: false,
-        })
-        .collect();
-    // Hertz up to the largest measured load.
-    let f_max = fa
-        .iter()
-        .flat_map(|c| c.points.iter().map(|p| p.1))
-        .fold(0.0f64, f64::max);
-    let a_ref = a_max.min((1.1 * f_max / k_hertz()).sqrt());
-    fa.push(Series::reference(
-        "Hertz F = πEa²/(4(1−ν²)R)",
-        (0..=50)
-            .map(|i| {
-                let a = a_ref * i as f64 / 50.0;
-                (a, k_hertz() * a * a)
+            .flat_map(|c| c.1.iter().map(|p| p.0))
+            .filter(|a| a.is_finite())
+            .fold(0.0f64, f64::max)
+            .min(0.3);
+        // One colour per method (in `methods`' order; the label names the resolution).
+        let colour = |label: &str| {
+            ["BFEMP", "augury APIC", "augury PIC", "penalty"]
+                .iter()
+                .position(|m| label.starts_with(m))
+                .unwrap_or(0)
+        };
+        let mut fa: Vec<Series> = curves
+            .into_iter()
+            .map(|(label, pts)| Series {
+                colour: colour(&label),
+                label,
+                points: pts.into_iter().filter(|p| p.0 <= a_max).collect(),
+                dashed: false,
             })
-            .collect(),
-        4,
-    ));
-    let png = charts::write(
-        &ctx.charts,
-        &Chart {
-            stem: format!("compare_disk_fa_{}", ctx.tier.name()),
-            title: "Disk between plates: contact force against contact half-width, every method"
-                .into(),
-            x_label: "contact half-width a (m)".into(),
-            y_label: "F (N/m)".into(),
-            series: fa,
-        },
-    )?;
-    out.charts
-        .push(("Force against half-width, every run".into(), png));
-    Ok(out)
+            .collect();
+        // Hertz up to the largest measured load.
+        let f_max = fa
+            .iter()
+            .flat_map(|c| c.points.iter().map(|p| p.1))
+            .fold(0.0f64, f64::max);
+        let a_ref = a_max.min((1.1 * f_max / k_hertz()).sqrt());
+        fa.push(Series::reference(
+            "Hertz F = πEa²/(4(1−ν²)R)",
+            (0..=50)
+                .map(|i| {
+                    let a = a_ref * i as f64 / 50.0;
+                    (a, k_hertz() * a * a)
+                })
+                .collect(),
+            4,
+        ));
+        let png = charts::write(
+            &ctx.charts,
+            &Chart {
+                stem: format!("compare_disk_fa_{}", ctx.tier.name()),
+                title:
+                    "Disk between plates: contact force against contact half-width, every method"
+                        .into(),
+                x_label: "contact half-width a (m)".into(),
+                y_label: "F (N/m)".into(),
+                series: fa,
+            },
+        )?;
+        out.charts
+            .push(("Force against half-width, every run".into(), png));
+        Ok(())
+    }
 }

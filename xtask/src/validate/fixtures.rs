@@ -5,6 +5,7 @@
 
 use anyhow::{Context, Result};
 
+use super::experiment::Experiment;
 use super::{Check, Ctx, Outcome, Tier};
 
 /// The fixtures the quick tier runs whole (seconds each on the CI machine); the rest take
@@ -18,8 +19,12 @@ const QUICK: &[&str] = &[
     "rings_fem_fem_newmark",
 ];
 
-/// Run the experiment.
-pub fn run(ctx: &Ctx) -> Result<Outcome> {
+/// The shipped scenes.
+#[derive(Default)]
+pub(super) struct Fixtures;
+
+/// The scenes in `fixtures/scenes/` by name, sorted: those `ctx`'s tier runs and those it skips.
+fn listing(ctx: &Ctx) -> Result<(Vec<String>, Vec<String>)> {
     let dir = ctx.root.join("fixtures/scenes");
     let mut names: Vec<String> = std::fs::read_dir(&dir)
         .with_context(|| format!("listing {}", dir.display()))?
@@ -28,66 +33,94 @@ pub fn run(ctx: &Ctx) -> Result<Outcome> {
         .filter_map(|p| p.file_stem().map(|s| s.to_string_lossy().into_owned()))
         .collect();
     names.sort();
-    let mut out = Outcome::default();
-    let mut skipped = Vec::new();
-    for name in &names {
-        if ctx.tier == Tier::Quick && !QUICK.contains(&name.as_str()) {
-            skipped.push(name.clone());
-            continue;
-        }
+    Ok(names
+        .into_iter()
+        .partition(|name| ctx.tier == Tier::Full || QUICK.contains(&name.as_str())))
+}
+
+impl Experiment for Fixtures {
+    /// A scene's name.
+    type Case = String;
+    /// Its run's summary, or why it stopped.
+    type Measured = std::result::Result<femp::output::Summary, String>;
+
+    fn cases(&self, ctx: &Ctx) -> Result<Vec<String>> {
+        Ok(listing(ctx)?.0)
+    }
+
+    fn measure(&self, ctx: &Ctx, name: &String) -> Result<Self::Measured> {
         let spec = ctx.fixture(name)?;
         let label = format!("fixture_{name}");
-        match ctx.run_scene(&label, &spec, None) {
-            Ok(r) => {
-                let s = &r.summary;
-                out.checks.push(Check::holds(
-                    &format!("`{name}.json` runs to completion"),
-                    format!(
-                        "{} steps to t = {:.4} s in {:.1} s",
-                        s.steps, s.simulated_time, s.wall_s
-                    ),
-                    "completed",
-                    "—",
-                    s.status == "completed",
-                ));
-                if s.method == femp::scene::Method::Bfemp {
-                    out.checks.push(Check::count(
-                        &format!("`{name}.json`: penetrations, max over steps"),
-                        s.max_penetrations,
-                        0,
-                    ));
-                } else {
-                    out.checks.push(Check::info(
-                        &format!("`{name}.json`: steps with a vertex inside another body"),
+        Ok(ctx
+            .run_scene(&label, &spec, None)
+            .map(|r| r.summary)
+            .map_err(|e| format!("{e:#}")))
+    }
+
+    fn checks(
+        &self,
+        ctx: &Ctx,
+        runs: &[(String, Self::Measured)],
+        out: &mut Outcome,
+    ) -> Result<()> {
+        for (name, run) in runs {
+            match run {
+                Ok(s) => {
+                    out.checks.push(Check::holds(
+                        &format!("`{name}.json` runs to completion"),
                         format!(
-                            "{} of {} (at most {} vertices)",
-                            s.penetrating_steps, s.steps, s.max_penetrations
+                            "{} steps to t = {:.4} s in {:.1} s",
+                            s.steps, s.simulated_time, s.wall_s
                         ),
-                        "augury lets vertices in under load (docs/augury.md)".into(),
+                        "completed",
+                        "—",
+                        s.status == "completed",
                     ));
+                    if s.method == femp::scene::Method::Bfemp {
+                        out.checks.push(Check::count(
+                            &format!("`{name}.json`: penetrations, max over steps"),
+                            s.max_penetrations,
+                            0,
+                        ));
+                    } else {
+                        out.checks.push(Check::info(
+                            &format!("`{name}.json`: steps with a vertex inside another body"),
+                            format!(
+                                "{} of {} (at most {} vertices)",
+                                s.penetrating_steps, s.steps, s.max_penetrations
+                            ),
+                            "augury lets vertices in under load (docs/augury.md)".into(),
+                        ));
+                    }
+                }
+                Err(e) => {
+                    out.checks.push(Check::stopped(
+                        format!("`{name}.json` runs to completion"),
+                        "stopped".into(),
+                        "completed".into(),
+                    ));
+                    out.notes.push(format!("`{name}.json`: {e}"));
                 }
             }
-            Err(e) => {
-                out.checks.push(Check::stopped(
-                    format!("`{name}.json` runs to completion"),
-                    "stopped".into(),
-                    "completed".into(),
-                ));
-                out.notes.push(format!("`{name}.json`: {e:#}"));
+        }
+        let skipped = listing(ctx)?.1;
+        out.notes.push(format!(
+            "Every scene in `fixtures/scenes/` is run as committed, through `femp::run` (what \
+             `femp run` does). {}",
+            if skipped.is_empty() {
+                "All of them ran in this tier.".to_string()
+            } else {
+                format!(
+                    "The quick tier runs the ones that take seconds; the full tier also runs {}.",
+                    skipped.join(", ")
+                )
             }
-        }
+        ));
+        Ok(())
     }
-    out.notes.push(format!(
-        "Every scene in `fixtures/scenes/` is run as committed, through `femp::run` (what \
-         `femp run` does). {}",
-        if skipped.is_empty() {
-            "All of them ran in this tier.".to_string()
-        } else {
-            format!(
-                "The quick tier runs the ones that take seconds; the full tier also runs {}.",
-                skipped.join(", ")
-            )
-        }
-    ));
-    Ok(out)
+
+    /// None: the table rows are the figures.
+    fn charts(&self, _: &Ctx, _: &[(String, Self::Measured)], _: &mut Outcome) -> Result<()> {
+        Ok(())
+    }
 }

@@ -17,6 +17,7 @@ mod compact;
 mod compare;
 mod ctx;
 mod disk;
+mod experiment;
 mod fixtures;
 mod hertz;
 mod outcome;
@@ -64,105 +65,105 @@ const EXPERIMENTS: &[Experiment] = &[
         name: "rings",
         section: "BFEMP 6.1",
         title: "MPM ring vs FEM ring at 40 m/s: momentum, energy, non-penetration",
-        run: rings::run,
+        run: experiment::drive::<rings::Rings>,
         quick_s: 180.0,
     },
     Experiment {
         name: "sine_boundary",
         section: "BFEMP 6.2",
         title: "FEM sine-wave boundary vs level-set slip boundary",
-        run: sine::run,
+        run: experiment::drive::<sine::Sine>,
         quick_s: 110.0,
     },
     Experiment {
         name: "hertz",
         section: "BFEMP 6.3",
         title: "Brazilian disk: force vs contact radius against 2D Hertz",
-        run: hertz::run,
+        run: experiment::drive::<hertz::Hertz>,
         quick_s: 20.0,
     },
     Experiment {
         name: "slope",
         section: "BFEMP 6.4",
         title: "Stiff MPM box on a frictional FEM slope: g(sinθ − μcosθ), sticking at μ = tanθ",
-        run: slope::run,
+        run: experiment::drive::<slope::Slope>,
         quick_s: 42.0,
     },
     Experiment {
         name: "refinement",
         section: "BFEMP 6.5",
         title: "MPM box on FEM box under refinement: convergence order",
-        run: refinement::run,
+        run: experiment::drive::<refinement::Refinement>,
         quick_s: 54.0,
     },
     Experiment {
         name: "buckling",
         section: "BFEMP 6.6",
         title: "Semicircular rings compressed: buckling order vs μ",
-        run: buckling::run,
+        run: experiment::drive::<buckling::Buckling>,
         quick_s: 176.0,
     },
     Experiment {
         name: "twist",
         section: "BFEMP 6.7",
         title: "3D shell twisting an MPM cube: slip angles vs μ",
-        run: twist::run,
+        run: experiment::drive::<twist::Twist>,
         quick_s: 158.0,
     },
     Experiment {
         name: "two_particles",
         section: "augury 3.1",
         title: "Two particles in one cell, APIC vs PIC",
-        run: augury::two_particles,
+        run: experiment::drive::<augury::TwoParticles>,
         quick_s: 0.1,
     },
     Experiment {
         name: "blocks_impact",
         section: "augury 3.2",
         title: "Two blocks impacting at an angle: exact momenta",
-        run: augury::blocks_impact,
+        run: experiment::drive::<augury::blocks::Blocks>,
         quick_s: 32.0,
     },
     Experiment {
         name: "ramp",
         section: "augury 3.3",
         title: "Block sliding down a 30° ramp",
-        run: augury::ramp_experiment,
+        run: experiment::drive::<augury::ramp::Ramp>,
         quick_s: 41.0,
     },
     Experiment {
         name: "augury_speed",
         section: "augury 4",
         title: "Speed: augury contact against the search-based penalty baseline, 10³–10⁶ nodes",
-        run: speed::run,
+        run: experiment::drive::<speed::Speed>,
         quick_s: 5.0,
     },
     Experiment {
         name: "compare",
         section: "both papers",
         title: "Speed vs accuracy: block sliding down a ramp, BFEMP / augury / penalty",
-        run: compare::run,
+        run: experiment::drive::<compare::Compare>,
         quick_s: 90.0,
     },
     Experiment {
         name: "disk_plates",
         section: "both papers",
         title: "Speed vs accuracy: a disk pressed between plates (Hertz), BFEMP / augury / penalty",
-        run: disk::run,
+        run: experiment::drive::<disk::Disk>,
         quick_s: 86.0,
     },
     Experiment {
         name: "stability",
         section: "both papers",
         title: "Stability maps: time step against impact speed",
-        run: stability::run,
+        run: experiment::drive::<stability::Stability>,
         quick_s: 7.0,
     },
     Experiment {
         name: "fixtures",
         section: "shipped scenes",
         title: "Every fixtures/scenes/*.json runs to completion as committed",
-        run: fixtures::run,
+        run: experiment::drive::<fixtures::Fixtures>,
         quick_s: 45.0,
     },
 ];
@@ -182,8 +183,19 @@ const USAGE: &str =
   --publish  copy the report and what it shows into docs/validation/ (quick) or
              docs/validation/full/ (full)";
 
-/// Entry point: parse `args` (after `validate`), run, print, report.
-pub fn main(args: &[String]) -> Result<()> {
+/// What `cargo xtask validate` was asked to do.
+struct Args {
+    tier: Tier,
+    only: Vec<String>,
+    publish: bool,
+    report_only: bool,
+    jobs: usize,
+    worker: bool,
+    out: Option<PathBuf>,
+}
+
+/// The arguments after `validate`; `None` after printing the help.
+fn parse_args(args: &[String]) -> Result<Option<Args>> {
     let mut tier = Tier::Quick;
     let mut only: Vec<String> = Vec::new();
     let mut publish = false;
@@ -224,7 +236,7 @@ pub fn main(args: &[String]) -> Result<()> {
                 for e in EXPERIMENTS {
                     println!("  {:14} {:11} {}", e.name, e.section, e.title);
                 }
-                return Ok(());
+                return Ok(None);
             }
             other => bail!("unknown argument `{other}`\n{USAGE}"),
         }
@@ -238,6 +250,31 @@ pub fn main(args: &[String]) -> Result<()> {
             bail!("no experiment `{n}`; experiments: {}", names.join(", "));
         }
     }
+    Ok(Some(Args {
+        tier,
+        only,
+        publish,
+        report_only,
+        jobs,
+        worker,
+        out,
+    }))
+}
+
+/// Entry point: parse `args` (after `validate`), run, print, report.
+pub fn main(args: &[String]) -> Result<()> {
+    let Some(Args {
+        tier,
+        only,
+        publish,
+        report_only,
+        jobs,
+        worker,
+        out,
+    }) = parse_args(args)?
+    else {
+        return Ok(());
+    };
     let root = workspace_root();
     // The code that runs is the code this binary was built from.
     let commit = git_describe();

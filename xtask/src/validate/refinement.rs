@@ -11,6 +11,7 @@ use femp::scene::{
 };
 
 use super::charts::{self, Chart, Series};
+use super::experiment::Experiment;
 use super::scenes::{bodies, mpm, particle_box, rectangle};
 use super::{Check, Ctx, Outcome, Pictures, Status, Tier, least_squares_slope};
 
@@ -60,16 +61,32 @@ fn order(points: &[(f64, f64)]) -> f64 {
     least_squares_slope(&logs)
 }
 
-/// Run the experiment.
-pub fn run(ctx: &Ctx) -> Result<Outcome> {
-    let (ns, reference, ppcs): (Vec<usize>, usize, Vec<usize>) = match ctx.tier {
+/// BFEMP §6.5.
+#[derive(Default)]
+pub(super) struct Refinement;
+
+/// The tier's cells across the box (tested, then the reference) and particles per cell.
+fn resolutions(tier: Tier) -> (Vec<usize>, usize, Vec<usize>) {
+    match tier {
         Tier::Quick => (vec![2, 4, 6, 8], 12, vec![16]),
         Tier::Full => ((1..=10).map(|k| 2 * k).collect(), 30, vec![4, 9, 16]),
-    };
-    let (duration, dt) = (3.0, 0.05);
-    let mut out = Outcome::default();
-    let mut series = Vec::new();
-    for (k, &ppc) in ppcs.iter().enumerate() {
+    }
+}
+
+impl Experiment for Refinement {
+    /// Particles per cell.
+    type Case = usize;
+    /// Per tested resolution: Δx and the error of the final centre-of-mass height against the
+    /// reference resolution's.
+    type Measured = Vec<(f64, f64)>;
+
+    fn cases(&self, ctx: &Ctx) -> Result<Vec<usize>> {
+        Ok(resolutions(ctx.tier).2)
+    }
+
+    fn measure(&self, ctx: &Ctx, &ppc: &usize) -> Result<Vec<(f64, f64)>> {
+        let (ns, reference, _) = resolutions(ctx.tier);
+        let (duration, dt) = (3.0, 0.05);
         let com = |n: usize| -> Result<f64> {
             let (_, probes) = ctx.run_scene_2d(
                 &format!("refinement_n{n}_ppc{ppc}"),
@@ -101,66 +118,94 @@ pub fn run(ctx: &Ctx) -> Result<Outcome> {
             let h = com(n)?;
             errs.push((1.0 / n as f64, (h - h_ref).abs()));
         }
-        let p = order(&errs);
-        let fig = format!("ppc {ppc}: convergence order of the COM height");
-        out.checks.push(if ppc == 16 {
-            Check {
-                figure: fig,
-                measured: format!("{p:.2}"),
-                expected: "≥ 2 (paper: 2.75)".into(),
-                tolerance: "—".into(),
-                status: if p >= 2.0 { Status::Pass } else { Status::Fail },
-            }
-        } else {
-            Check::info(
-                &fig,
-                format!("{p:.2}"),
-                "(paper: noisier below ppc 16)".into(),
-            )
-        });
-        out.notes.push(format!(
-            "ppc {ppc}: errors against N = {reference}: {}.",
-            errs.iter()
-                .map(|(dx, e)| format!("Δx = 1/{:.0}: {e:.3e}", 1.0 / dx))
-                .collect::<Vec<_>>()
-                .join(", ")
-        ));
-        series.push(Series::line(
-            format!("ppc {ppc}"),
-            errs.iter()
-                .map(|&(dx, e)| (dx.ln(), e.max(1e-300).ln()))
-                .collect(),
-            k,
-        ));
+        Ok(errs)
     }
-    if let Some(first) = series.first() {
-        // Slope-2 reference through the first point.
-        let (x0, y0) = first.points[0];
-        let x1 = first.points.last().map_or(x0, |p| p.0);
-        series.push(Series::reference(
-            "order 2",
-            vec![(x0, y0), (x1, y0 + 2.0 * (x1 - x0))],
-            5,
-        ));
+
+    fn checks(
+        &self,
+        ctx: &Ctx,
+        runs: &[(usize, Vec<(f64, f64)>)],
+        out: &mut Outcome,
+    ) -> Result<()> {
+        let (ns, reference, _) = resolutions(ctx.tier);
+        for (ppc, errs) in runs {
+            let ppc = *ppc;
+            let p = order(errs);
+            let fig = format!("ppc {ppc}: convergence order of the COM height");
+            out.checks.push(if ppc == 16 {
+                Check {
+                    figure: fig,
+                    measured: format!("{p:.2}"),
+                    expected: "≥ 2 (paper: 2.75)".into(),
+                    tolerance: "—".into(),
+                    status: if p >= 2.0 { Status::Pass } else { Status::Fail },
+                }
+            } else {
+                Check::info(
+                    &fig,
+                    format!("{p:.2}"),
+                    "(paper: noisier below ppc 16)".into(),
+                )
+            });
+            out.notes.push(format!(
+                "ppc {ppc}: errors against N = {reference}: {}.",
+                errs.iter()
+                    .map(|(dx, e)| format!("Δx = 1/{:.0}: {e:.3e}", 1.0 / dx))
+                    .collect::<Vec<_>>()
+                    .join(", ")
+            ));
+        }
+        if ctx.tier == Tier::Quick {
+            out.notes.push(format!(
+                "Quick tier: N = {ns:?} against N = {reference}, 16 particles per cell. A reference \
+                 this close to the finest test biases the fitted order upwards; the full tier uses the \
+                 paper's N = 2…20 against N = 30 and 4, 9 and 16 particles per cell."
+            ));
+        }
+        Ok(())
     }
-    if ctx.tier == Tier::Quick {
-        out.notes.push(format!(
-            "Quick tier: N = {ns:?} against N = {reference}, 16 particles per cell. A reference \
-             this close to the finest test biases the fitted order upwards; the full tier uses the \
-             paper's N = 2…20 against N = 30 and 4, 9 and 16 particles per cell."
-        ));
+
+    fn charts(
+        &self,
+        ctx: &Ctx,
+        runs: &[(usize, Vec<(f64, f64)>)],
+        out: &mut Outcome,
+    ) -> Result<()> {
+        let mut series: Vec<Series> = runs
+            .iter()
+            .enumerate()
+            .map(|(k, (ppc, errs))| {
+                Series::line(
+                    format!("ppc {ppc}"),
+                    errs.iter()
+                        .map(|&(dx, e)| (dx.ln(), e.max(1e-300).ln()))
+                        .collect(),
+                    k,
+                )
+            })
+            .collect();
+        if let Some(first) = series.first() {
+            // Slope-2 reference through the first point.
+            let (x0, y0) = first.points[0];
+            let x1 = first.points.last().map_or(x0, |p| p.0);
+            series.push(Series::reference(
+                "order 2",
+                vec![(x0, y0), (x1, y0 + 2.0 * (x1 - x0))],
+                5,
+            ));
+        }
+        let png = charts::write(
+            &ctx.charts,
+            &Chart {
+                stem: format!("refinement_{}", ctx.tier.name()),
+                title: "6.5 convergence under refinement".into(),
+                x_label: "ln Δx".into(),
+                y_label: "ln |COM height − reference|".into(),
+                series,
+            },
+        )?;
+        out.charts
+            .push(("Error of the centre-of-mass height".into(), png));
+        Ok(())
     }
-    let png = charts::write(
-        &ctx.charts,
-        &Chart {
-            stem: format!("refinement_{}", ctx.tier.name()),
-            title: "6.5 convergence under refinement".into(),
-            x_label: "ln Δx".into(),
-            y_label: "ln |COM height − reference|".into(),
-            series,
-        },
-    )?;
-    out.charts
-        .push(("Error of the centre-of-mass height".into(), png));
-    Ok(out)
 }

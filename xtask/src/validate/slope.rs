@@ -18,6 +18,7 @@ use femp::scene::{
 };
 
 use super::charts::{self, Chart, Series};
+use super::experiment::Experiment;
 use super::scenes::{bodies, moving, mpm, prescribed, rectangle};
 use super::{Check, Ctx, Outcome, Pictures, Tier, least_squares_slope};
 
@@ -103,22 +104,62 @@ fn scene(mu: f64, settle: f64, release: f64) -> SceneSpec {
     spec
 }
 
-/// Run the experiment.
-pub fn run(ctx: &Ctx) -> Result<Outcome> {
-    let (settle, release) = match ctx.tier {
-        Tier::Quick => (0.25, 0.5),
-        Tier::Full => (2.0, 1.0),
-    };
-    let th = TAN.atan();
-    let dir = [th.cos(), -th.sin()];
-    let mut out = Outcome::default();
-    let mut series = Vec::new();
-    for (k, mu) in [0.0, 0.1, 0.1999, 0.2].into_iter().enumerate() {
+/// BFEMP §6.4.
+#[derive(Default)]
+pub(super) struct Slope;
+
+/// One coefficient of friction, with the tier's settling and release times (s).
+pub(super) struct Case {
+    mu: f64,
+    settle: f64,
+    release: f64,
+}
+
+/// A run and the box's centre-of-mass velocity along the slope after release, against the time
+/// since release.
+pub(super) struct Measured {
+    run: femp::run::RunResult,
+    v: Vec<(f64, f64)>,
+}
+
+/// The slope's angle θ.
+fn theta() -> f64 {
+    TAN.atan()
+}
+
+/// g(sin θ − μ cos θ).
+fn acceleration(mu: f64) -> f64 {
+    G * (theta().sin() - mu * theta().cos())
+}
+
+impl Experiment for Slope {
+    type Case = Case;
+    type Measured = Measured;
+
+    fn cases(&self, ctx: &Ctx) -> Result<Vec<Case>> {
+        let (settle, release) = match ctx.tier {
+            Tier::Quick => (0.25, 0.5),
+            Tier::Full => (2.0, 1.0),
+        };
+        Ok([0.0, 0.1, 0.1999, 0.2]
+            .into_iter()
+            .map(|mu| Case {
+                mu,
+                settle,
+                release,
+            })
+            .collect())
+    }
+
+    fn measure(&self, ctx: &Ctx, c: &Case) -> Result<Measured> {
+        let th = theta();
+        let dir = [th.cos(), -th.sin()];
+        let (mu, settle) = (c.mu, c.settle);
         // The box's own centre-of-mass velocity along the slope (the metrics' momentum also
         // counts the wall while it moves).
-        let (r, v) = ctx.run_scene_2d(
+        let (run, v) = ctx.run_scene_2d(
             &format!("slope_mu_{mu}"),
-            &scene(mu, settle, release),
+            &scene(mu, settle, c.release),
             (mu == 0.1).then(|| Pictures::keys("Box on the slope, μ = 0.1", 3)),
             |w| {
                 let m = w.bodies.mpm.as_ref().expect("the box is MPM");
@@ -131,77 +172,97 @@ pub fn run(ctx: &Ctx) -> Result<Outcome> {
                 (w.clock.time, (p[0] * dir[0] + p[1] * dir[1]) / mass)
             },
         )?;
-        let v: Vec<(f64, f64)> = v
+        let v = v
             .into_iter()
             .filter(|p| p.0 >= settle - 1e-9)
             .map(|(t, v)| (t - settle, v))
             .collect();
-        let penetrations = r.metrics.iter().map(|m| m.penetrations).max().unwrap_or(0);
-        let second_half: Vec<(f64, f64)> =
-            v.iter().copied().filter(|p| p.0 >= 0.5 * release).collect();
-        let a_fit = least_squares_slope(&second_half);
-        let a = G * (th.sin() - mu * th.cos());
-        if mu < TAN {
-            out.checks.push(Check::rel(
-                &format!("μ = {mu}: acceleration (m/s²)"),
-                a_fit,
-                a,
-                1e-4,
-                "",
+        Ok(Measured { run, v })
+    }
+
+    fn checks(&self, _: &Ctx, runs: &[(Case, Measured)], out: &mut Outcome) -> Result<()> {
+        let th = theta();
+        for (c, Measured { run: r, v }) in runs {
+            let mu = c.mu;
+            let penetrations = r.metrics.iter().map(|m| m.penetrations).max().unwrap_or(0);
+            let second_half: Vec<(f64, f64)> = v
+                .iter()
+                .copied()
+                .filter(|p| p.0 >= 0.5 * c.release)
+                .collect();
+            let a_fit = least_squares_slope(&second_half);
+            let a = acceleration(mu);
+            if mu < TAN {
+                out.checks.push(Check::rel(
+                    &format!("μ = {mu}: acceleration (m/s²)"),
+                    a_fit,
+                    a,
+                    1e-4,
+                    "",
+                ));
+            } else {
+                // Critical: no acceleration (relative to the frictionless one), and the
+                // mollified static friction holds the box below the threshold velocity ε_v.
+                out.checks.push(Check::abs(
+                    &format!("μ = {mu}: acceleration (m/s²)"),
+                    a_fit,
+                    0.0,
+                    1e-4 * G * th.sin(),
+                    "",
+                ));
+                let vmax = v.iter().map(|p| p.1.abs()).fold(0.0, f64::max);
+                out.checks.push(Check::at_most(
+                    &format!("μ = {mu}: max speed after release (m/s)"),
+                    vmax,
+                    1.01 * EPS_V,
+                    "",
+                ));
+            }
+            out.checks.push(Check::count(
+                &format!("μ = {mu}: penetrations, max over steps"),
+                penetrations,
+                0,
             ));
-        } else {
-            // Critical: no acceleration (relative to the frictionless one), and the mollified
-            // static friction holds the box below the threshold velocity ε_v.
-            out.checks.push(Check::abs(
-                &format!("μ = {mu}: acceleration (m/s²)"),
-                a_fit,
-                0.0,
-                1e-4 * G * th.sin(),
-                "",
-            ));
-            let vmax = v.iter().map(|p| p.1.abs()).fold(0.0, f64::max);
-            out.checks.push(Check::at_most(
-                &format!("μ = {mu}: max speed after release (m/s)"),
-                vmax,
-                1.01 * EPS_V,
-                "",
+            out.notes.push(format!(
+                "μ = {mu}: fitted acceleration {a_fit:.6e} m/s² against g(sin θ − μ cos θ) = \
+                 {a:.6e} (relative error {:.2e}); {} steps, {} Newton and {} friction \
+                 iterations, {:.1} s.",
+                if a != 0.0 {
+                    (a_fit - a).abs() / a.abs()
+                } else {
+                    f64::NAN
+                },
+                r.summary.steps,
+                r.summary.newton_iterations,
+                r.summary.friction_iterations,
+                r.summary.wall_s
             ));
         }
-        out.checks.push(Check::count(
-            &format!("μ = {mu}: penetrations, max over steps"),
-            penetrations,
-            0,
-        ));
-        out.notes.push(format!(
-            "μ = {mu}: fitted acceleration {a_fit:.6e} m/s² against g(sin θ − μ cos θ) = {a:.6e} \
-             (relative error {:.2e}); {} steps, {} Newton and {} friction iterations, {:.1} s.",
-            if a != 0.0 {
-                (a_fit - a).abs() / a.abs()
-            } else {
-                f64::NAN
-            },
-            r.summary.steps,
-            r.summary.newton_iterations,
-            r.summary.friction_iterations,
-            r.summary.wall_s
-        ));
-        series.push(Series::line(format!("μ = {mu}"), v.clone(), k));
-        series.push(Series::reference(
-            format!("μ = {mu} analytic"),
-            v.iter().map(|p| (p.0, a.max(0.0) * p.0)).collect(),
-            k,
-        ));
+        Ok(())
     }
-    let png = charts::write(
-        &ctx.charts,
-        &Chart {
-            stem: format!("slope_velocity_{}", ctx.tier.name()),
-            title: "6.4 box on a slope (tan θ = 0.2): centre-of-mass velocity".into(),
-            x_label: "time since release (s)".into(),
-            y_label: "v along the slope (m/s)".into(),
-            series,
-        },
-    )?;
-    out.charts.push(("Velocity along the slope".into(), png));
-    Ok(out)
+
+    fn charts(&self, ctx: &Ctx, runs: &[(Case, Measured)], out: &mut Outcome) -> Result<()> {
+        let mut series = Vec::new();
+        for (k, (c, m)) in runs.iter().enumerate() {
+            let (mu, a) = (c.mu, acceleration(c.mu));
+            series.push(Series::line(format!("μ = {mu}"), m.v.clone(), k));
+            series.push(Series::reference(
+                format!("μ = {mu} analytic"),
+                m.v.iter().map(|p| (p.0, a.max(0.0) * p.0)).collect(),
+                k,
+            ));
+        }
+        let png = charts::write(
+            &ctx.charts,
+            &Chart {
+                stem: format!("slope_velocity_{}", ctx.tier.name()),
+                title: "6.4 box on a slope (tan θ = 0.2): centre-of-mass velocity".into(),
+                x_label: "time since release (s)".into(),
+                y_label: "v along the slope (m/s)".into(),
+                series,
+            },
+        )?;
+        out.charts.push(("Velocity along the slope".into(), png));
+        Ok(())
+    }
 }

@@ -8,6 +8,7 @@ use crate::validate::charts::{self, Chart, Series, Style};
 use crate::validate::{Check, Ctx, Outcome};
 
 /// One run's outcome.
+#[derive(Clone, Debug)]
 pub(in crate::validate) struct Point {
     pub method: &'static str,
     pub h: f64,
@@ -19,28 +20,39 @@ pub(in crate::validate) struct Point {
     pub depth: String,
 }
 
-/// Each method's Pareto front (the most accurate run up to each wall time) as a chart series,
-/// and every run as a table row (figure prefixed by `prefix`).
-pub(in crate::validate) fn fronts(
-    points: &[Point],
-    methods: &[&str],
-    prefix: &str,
-    out: &mut Outcome,
-) -> Vec<Series> {
+/// The runs of `method`, fastest first.
+fn runs_of<'a>(points: &'a [Point], method: &str) -> Vec<&'a Point> {
+    let mut pts: Vec<&Point> = points.iter().filter(|p| p.method == method).collect();
+    pts.sort_by(|a, b| a.wall.total_cmp(&b.wall));
+    pts
+}
+
+/// Each method's Pareto front (the most accurate run up to each wall time) as a chart series.
+pub(in crate::validate) fn fronts(points: &[Point], methods: &[&str]) -> Vec<Series> {
     let mut series = Vec::new();
     for (c, m) in methods.iter().enumerate() {
-        let mut pts: Vec<&Point> = points.iter().filter(|p| p.method == *m).collect();
-        pts.sort_by(|a, b| a.wall.total_cmp(&b.wall));
         let mut best = f64::INFINITY;
         let mut front = Vec::new();
-        for p in &pts {
+        for p in runs_of(points, m) {
             if p.error < best {
                 best = p.error;
                 front.push((p.wall, p.error.max(1e-6)));
             }
         }
         series.push(Series::line(*m, front, c));
-        for p in &pts {
+    }
+    series
+}
+
+/// Every run as a table row (figure prefixed by `prefix`), method by method, fastest first.
+pub(in crate::validate) fn run_rows(
+    points: &[Point],
+    methods: &[&str],
+    prefix: &str,
+    out: &mut Outcome,
+) {
+    for m in methods {
+        for p in runs_of(points, m) {
             out.checks.push(Check::info(
                 &format!("{prefix}{m}, h = {}, Δt = {:.2e} s", p.h, p.dt),
                 format!(
@@ -58,7 +70,6 @@ pub(in crate::validate) fn fronts(
             ));
         }
     }
-    series
 }
 
 /// The largest penetration count over the runs of methods whose name starts with `prefix`.
