@@ -74,9 +74,8 @@ fn cell(s: &str) -> String {
     s.replace('|', "\\|")
 }
 
-/// Write `out/README.md`.
-pub fn write(out: &Path, tier: Tier, done: &[Done]) -> Result<()> {
-    let mut s = String::new();
+/// The report's title and introduction: when and at which commits it ran, the tier.
+fn introduction(s: &mut String, tier: Tier, done: &[Done]) {
     let _ = writeln!(s, "# Validation report ({} tier)\n", tier.name());
     let total_s: f64 = done
         .iter()
@@ -138,6 +137,10 @@ pub fn write(out: &Path, tier: Tier, done: &[Done]) -> Result<()> {
             );
         }
     }
+}
+
+/// The count of checks by status and the table of every check.
+fn check_table(s: &mut String, done: &[Done]) {
     let (pass, fail, info) = done
         .iter()
         .filter_map(|d| d.outcome.as_ref().and_then(|o| o.as_ref().ok()))
@@ -221,6 +224,10 @@ pub fn write(out: &Path, tier: Tier, done: &[Done]) -> Result<()> {
             }
         }
     }
+}
+
+/// One section per experiment: when it ran, its notes, charts and pictures.
+fn experiment_sections(s: &mut String, out: &Path, tier: Tier, done: &[Done]) {
     for d in done {
         let Some(outcome) = &d.outcome else { continue };
         let _ = writeln!(s, "\n## {} — {} ({})\n", d.section, d.title, d.name);
@@ -268,6 +275,14 @@ pub fn write(out: &Path, tier: Tier, done: &[Done]) -> Result<()> {
             }
         }
     }
+}
+
+/// Write `out/README.md`.
+pub fn write(out: &Path, tier: Tier, done: &[Done]) -> Result<()> {
+    let mut s = String::new();
+    introduction(&mut s, tier, done);
+    check_table(&mut s, done);
+    experiment_sections(&mut s, out, tier, done);
     let path = out.join("README.md");
     std::fs::write(&path, s).with_context(|| format!("writing {}", path.display()))
 }
