@@ -10,6 +10,8 @@ pub struct StepReport {
     pub newton_iterations: usize,
     /// Friction (lagging) iterations (1 when there is no friction; 0 for augury).
     pub friction_iterations: usize,
+    /// Friction operators lagged at an extrapolated point (`solver.friction_extrapolation`).
+    pub extrapolated_lags: usize,
     /// Iterations of the augury contact step (its velocity corrections; 0 for BFEMP).
     pub augury_iterations: usize,
     /// Whether the friction iteration converged (always true without friction).
@@ -47,6 +49,7 @@ impl StepReport {
     pub(crate) fn add_work(&mut self, o: &StepReport) {
         self.newton_iterations += o.newton_iterations;
         self.friction_iterations += o.friction_iterations;
+        self.extrapolated_lags += o.extrapolated_lags;
         self.augury_iterations += o.augury_iterations;
         self.friction_converged &= o.friction_converged;
         if self.retried.is_none() {
@@ -73,6 +76,7 @@ impl Default for StepReport {
         Self {
             newton_iterations: 0,
             friction_iterations: 0,
+            extrapolated_lags: 0,
             augury_iterations: 0,
             friction_converged: true,
             retried: None,

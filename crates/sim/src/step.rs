@@ -351,6 +351,7 @@ impl Bfemp {
             max_solves: max_fric,
             update_below: solver.friction_update_below,
             forcing: solver.friction_forcing,
+            extrapolate: solver.friction_extrapolation,
         };
         let (step, time) = (clock.step, clock.time);
         let failed = |(e, j): (femp_solver::SolveError, usize)| match e {
@@ -921,6 +922,9 @@ pub(crate) fn friction_loop<const D: usize>(
     }
     obj.prefer_exact = params.hessian == HessianStrategy::ExactWhenDefinite;
     let mut solves = 0;
+    // Aitken extrapolation: the change after the last solve lagged at a solve's own point.
+    let mut plain_change: Option<f64> = None;
+    let mut lag_point = Vec::new();
     loop {
         // Half a solve's iterations at most update the operator: the rest converge on it.
         obj.lag.limit = obj.lag.count + params.max_iterations / 2;
@@ -951,7 +955,22 @@ pub(crate) fn friction_loop<const D: usize>(
             break;
         }
         let before = obj.lag.terms;
-        obj.lag_friction(x);
+        match extrapolated_lag(
+            obj,
+            x,
+            plain_change.filter(|_| policy.extrapolate),
+            change,
+            &mut lag_point,
+        ) {
+            true => {
+                report.extrapolated_lags += 1;
+                plain_change = None;
+            }
+            false => {
+                obj.lag_friction(x);
+                plain_change = Some(change);
+            }
+        }
         // A solve to the full tolerance follows once the operator has stopped moving.
         moving = if change < params.tolerance {
             0.0
@@ -968,6 +987,41 @@ pub(crate) fn friction_loop<const D: usize>(
     Ok(())
 }
 
+/// Lag the friction operator at the Aitken extrapolation of the friction loop's iterates, if
+/// it applies: the last two changes `previous` and `change` of the operator's point shrank by a
+/// steady ratio `r = change / previous < 0.9`, and the straight path from `x` to
+/// `y = x + r/(1 − r) (x − the operator's point)` is feasible (`lag_point` is scratch). For a
+/// linearly converging fixed-point iteration `y` is its limit to first order.
+fn extrapolated_lag<const D: usize>(
+    obj: &mut StepObjective<'_, D>,
+    x: &[f64],
+    previous: Option<f64>,
+    change: f64,
+    lag_point: &mut Vec<f64>,
+) -> bool {
+    let Some(previous) = previous else {
+        return false;
+    };
+    let r = change / previous;
+    if !(r > 0.0 && r < 0.9) {
+        return false;
+    }
+    let factor = r / (1.0 - r);
+    let dir: Vec<f64> = x
+        .iter()
+        .zip(&obj.lag.at)
+        .map(|(now, at)| factor * (now - at))
+        .collect();
+    let bound = femp_solver::Objective::max_step(obj, x, &dir);
+    if bound.limit.is_some() || bound.alpha < 1.0 {
+        return false;
+    }
+    lag_point.clear();
+    lag_point.extend(x.iter().zip(&dir).map(|(a, d)| a + d));
+    obj.lag_friction(lag_point);
+    true
+}
+
 /// How a step's lagged-friction loop runs ([`friction_loop`]).
 #[derive(Clone, Copy, Debug)]
 pub(crate) struct FrictionPolicy {
@@ -979,6 +1033,8 @@ pub(crate) struct FrictionPolicy {
     pub(crate) update_below: f64,
     /// `solver.friction_forcing`.
     pub(crate) forcing: f64,
+    /// `solver.friction_extrapolation`.
+    pub(crate) extrapolate: bool,
 }
 
 /// Start `x` at the predictor `x_hat` (targets for prescribed DOFs) when the straight path

@@ -531,11 +531,17 @@ fn contact_only_objective_is_inertia_and_barrier_3d() {
 /// The lagged-friction loop ends at its fixed point: re-evaluating the friction operator at
 /// the loop's solution and solving again moves no particle or vertex by more than the Newton
 /// tolerance over a step — with the operator updated between solves only and inside the
-/// Newton iterations too (`solver.friction_update_below`), and with inexact solves while the
-/// operator moves (`solver.friction_forcing`). Stopping one friction iteration early, ending on
-/// an inexact solve, or measuring the fixed point on grid nodes a particle barely touches, fails
-/// it.
-fn check_friction_fixed_point<const D: usize>(json: &str, below: f64, forcing: f64) {
+/// Newton iterations too (`solver.friction_update_below`), with inexact solves while the
+/// operator moves (`solver.friction_forcing`), and with the operator lagged at Aitken's
+/// extrapolation (`solver.friction_extrapolation`, which must then have been used). Stopping one
+/// friction iteration early, ending on an inexact solve or on an extrapolated operator, or
+/// measuring the fixed point on grid nodes a particle barely touches, fails it.
+fn check_friction_fixed_point<const D: usize>(
+    json: &str,
+    below: f64,
+    forcing: f64,
+    extrapolate: bool,
+) {
     use crate::step::{FrictionPolicy, friction_loop};
     use femp_solver::{Newton, NewtonParams};
     let mut w = world::<D>(json);
@@ -563,11 +569,18 @@ fn check_friction_fixed_point<const D: usize>(json: &str, below: f64, forcing: f
             max_solves: 100,
             update_below: below,
             forcing,
+            extrapolate,
         },
         &mut report,
     )
     .unwrap();
     assert!(report.friction_converged, "{D}D: {report:?}");
+    assert_eq!(
+        report.extrapolated_lags > 0,
+        extrapolate,
+        "{D}D: {} operators lagged at an extrapolated point",
+        report.extrapolated_lags
+    );
     // The loop ends on a solve to the full tolerance.
     assert!(
         report.stats.final_residual < tol,
@@ -588,16 +601,23 @@ fn check_friction_fixed_point<const D: usize>(json: &str, below: f64, forcing: f
     let moved = obj.lag_distance(&again) / w.clock.dt;
     assert!(
         moved < 2.0 * tol,
-        "{D}D, update below {below}, forcing {forcing}: a further friction iteration moves a \
-         point by {moved:e} m/s"
+        "{D}D, update below {below}, forcing {forcing}, extrapolated {extrapolate}: a further \
+         friction iteration moves a point by {moved:e} m/s"
     );
 }
 
 #[test]
 fn friction_loop_ends_at_its_fixed_point() {
-    for (below, forcing) in [(0.0, 0.0), (1e-2, 0.0), (0.0, 0.1), (0.0, 0.5)] {
-        check_friction_fixed_point::<2>(SCENE_2D, below, forcing);
-        check_friction_fixed_point::<3>(SCENE_3D, below, forcing);
+    for (below, forcing, extrapolate) in [
+        (0.0, 0.0, false),
+        (1e-2, 0.0, false),
+        (0.0, 0.1, false),
+        (0.0, 0.5, false),
+        (0.0, 0.0, true),
+        (0.0, 0.5, true),
+    ] {
+        check_friction_fixed_point::<2>(SCENE_2D, below, forcing, extrapolate);
+        check_friction_fixed_point::<3>(SCENE_3D, below, forcing, extrapolate);
     }
 }
 

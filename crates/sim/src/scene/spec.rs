@@ -239,6 +239,12 @@ pub struct SolverSpec {
     /// solve stops at `max(tolerance, η × its last change)` (m/s); the last solve is to the full
     /// tolerance (0: every solve to the full tolerance).
     pub friction_forcing: f64,
+    /// Aitken extrapolation of the friction loop: once two solves in a row have shrunk the
+    /// operator's change by a steady ratio r < 0.9, the operator is lagged at
+    /// `x + r/(1 − r) (x − its last point)` (where the straight path there is feasible)
+    /// instead of at the solve's `x`; the loop still ends only at a fixed point.
+    #[serde(skip_serializing_if = "is_false")]
+    pub friction_extrapolation: bool,
     /// What Newton's convergence test measures the increment on.
     pub newton_test: NewtonTestSpec,
     /// When a step's Newton solve fails (iteration limit, stalled line search), solve the step
@@ -315,6 +321,7 @@ impl Default for SolverSpec {
             reuse_hessian_below: 0.0,
             friction_update_below: 0.0,
             friction_forcing: 0.0,
+            friction_extrapolation: false,
             newton_test: NewtonTestSpec::Nodes,
             retry_other_projection: true,
             max_substeps: 1024,
