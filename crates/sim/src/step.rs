@@ -280,9 +280,7 @@ impl Bfemp {
         Integrator::BackwardEuler.predictor(w.clock.dt, &s.x0, &s.v0, &s.a0, &mut raw);
         let mut xp = s.x0.clone();
         let mut proj = StepObjective::new(
-            w.bodies.mpm.as_ref(),
-            &w.bodies.fem,
-            &w.bodies.pairs,
+            w.bodies,
             w.clock.dt,
             s.dofs(),
             Inertia {
@@ -955,21 +953,13 @@ pub(crate) fn friction_loop<const D: usize>(
             break;
         }
         let before = obj.lag.terms;
-        match extrapolated_lag(
-            obj,
-            x,
-            plain_change.filter(|_| policy.extrapolate),
-            change,
-            &mut lag_point,
-        ) {
-            true => {
-                report.extrapolated_lags += 1;
-                plain_change = None;
-            }
-            false => {
-                obj.lag_friction(x);
-                plain_change = Some(change);
-            }
+        let previous = plain_change.filter(|_| policy.extrapolate);
+        if extrapolated_lag(obj, x, previous, change, &mut lag_point) {
+            report.extrapolated_lags += 1;
+            plain_change = None;
+        } else {
+            obj.lag_friction(x);
+            plain_change = Some(change);
         }
         // A solve to the full tolerance follows once the operator has stopped moving.
         moving = if change < params.tolerance {
@@ -990,7 +980,8 @@ pub(crate) fn friction_loop<const D: usize>(
 /// Lag the friction operator at the Aitken extrapolation of the friction loop's iterates, if
 /// it applies: the last two changes `previous` and `change` of the operator's point shrank by a
 /// steady ratio `r = change / previous < 0.9`, and the straight path from `x` to
-/// `y = x + r/(1 − r) (x − the operator's point)` is feasible (`lag_point` is scratch). For a
+/// `y = x + r/(1 − r) (x − the operator's point)` is feasible (`y` is built in `lag_point`,
+/// reused across the loop's solves: first the step `y − x`, then `y`). For a
 /// linearly converging fixed-point iteration `y` is its limit to first order.
 fn extrapolated_lag<const D: usize>(
     obj: &mut StepObjective<'_, D>,
@@ -1007,17 +998,19 @@ fn extrapolated_lag<const D: usize>(
         return false;
     }
     let factor = r / (1.0 - r);
-    let dir: Vec<f64> = x
-        .iter()
-        .zip(&obj.lag.at)
-        .map(|(now, at)| factor * (now - at))
-        .collect();
-    let bound = femp_solver::Objective::max_step(obj, x, &dir);
+    lag_point.clear();
+    lag_point.extend(
+        x.iter()
+            .zip(&obj.lag.at)
+            .map(|(now, at)| factor * (now - at)),
+    );
+    let bound = femp_solver::Objective::max_step(obj, x, lag_point);
     if bound.limit.is_some() || bound.alpha < 1.0 {
         return false;
     }
-    lag_point.clear();
-    lag_point.extend(x.iter().zip(&dir).map(|(a, d)| a + d));
+    for (y, a) in lag_point.iter_mut().zip(x) {
+        *y += a;
+    }
     obj.lag_friction(lag_point);
     true
 }
@@ -1086,9 +1079,7 @@ impl<const D: usize> StepSetup<D> {
         w: f64,
     ) -> StepObjective<'a, D> {
         StepObjective::new(
-            bodies.mpm.as_ref(),
-            &bodies.fem,
-            &bodies.pairs,
+            bodies,
             dt,
             self.dofs(),
             Inertia {

@@ -21,15 +21,10 @@ pub(crate) fn contact_pairs<const D: usize>(
     mpm: Option<&Mpm<D>>,
     fem: &[FemBody<D>],
 ) -> Result<Vec<Pair<D>>, SimError> {
-    let mut pairs = Vec::new();
-    for law in laws {
-        let [i, j] = law.bodies;
-        let (si, sj) = (slot[i], slot[j]);
-        let dhat = law.barrier.dhat;
-        // A barrier reaching across a whole body is no contact gap: every point would be a
-        // candidate of every facet (one Newton iteration of a 1 m cube with d̂ = 10 m took
-        // minutes). Refuse d̂ not below the smaller body's size.
-        let extent = |(is_mpm, k): (bool, usize)| -> f64 {
+    // Each body's size: its bounding box's longest side (once per body, not per pair).
+    let extents: Vec<f64> = slot
+        .iter()
+        .map(|&(is_mpm, k)| {
             let pts: &[SVector<f64, D>] = if is_mpm {
                 match mpm {
                     Some(m) => &m.x[m.bodies[k].range.0..m.bodies[k].range.1],
@@ -39,8 +34,17 @@ pub(crate) fn contact_pairs<const D: usize>(
                 &fem[k].x
             };
             crate::overlap::bounding_box(pts).map_or(f64::INFINITY, |(lo, hi)| (hi - lo).max())
-        };
-        let (ei, ej) = (extent(si), extent(sj));
+        })
+        .collect();
+    let mut pairs = Vec::new();
+    for law in laws {
+        let [i, j] = law.bodies;
+        let (si, sj) = (slot[i], slot[j]);
+        let dhat = law.barrier.dhat;
+        // A barrier reaching across a whole body is no contact gap: every point would be a
+        // candidate of every facet (one Newton iteration of a 1 m cube with d̂ = 10 m took
+        // minutes). Refuse d̂ not below the smaller body's size.
+        let (ei, ej) = (extents[i], extents[j]);
         let (size, small) = if ei <= ej {
             (ei, names[i])
         } else {

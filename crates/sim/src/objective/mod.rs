@@ -20,7 +20,7 @@ use femp_solver::{Objective, StepBound, StepLimit, Triplets};
 use nalgebra::SVector;
 use std::time::Instant;
 
-use crate::bodies::{FemBody, Mpm, Pair};
+use crate::bodies::{Bodies, FemBody, Mpm};
 
 mod config;
 mod contact;
@@ -135,20 +135,18 @@ pub(crate) struct FrictionLag<const D: usize> {
 }
 
 impl<'a, const D: usize> StepObjective<'a, D> {
-    /// The potential of a step of length `dt` over the bodies, with their unknowns laid out by
+    /// The potential of a step of length `dt` over `bodies`, with their unknowns laid out by
     /// `dofs`, the quadratic terms `inertia`, the step's start `x_start` (where the line
     /// search's feasible paths begin) and the integrator weight `w`.
-    #[allow(clippy::too_many_arguments)]
     pub(crate) fn new(
-        mpm: Option<&'a Mpm<D>>,
-        fem: &'a [FemBody<D>],
-        pairs: &'a [Pair<D>],
+        bodies: &'a Bodies<D>,
         dt: f64,
         dofs: Dofs,
         inertia: Inertia<'a, D>,
         x_start: &'a [f64],
         w: f64,
     ) -> Self {
+        let (mpm, fem) = (bodies.mpm.as_ref(), &bodies.fem[..]);
         Self {
             mpm,
             fem,
@@ -159,7 +157,7 @@ impl<'a, const D: usize> StepObjective<'a, D> {
             inertia,
             particles: ParticleElasticity::new(mpm),
             elements: ElementElasticity::new(fem),
-            contact: Contact::new(mpm, fem, pairs, dt),
+            contact: Contact::new(mpm, fem, &bodies.pairs, dt),
             motion: (Vec::new(), Vec::new()),
             prefer_exact: false,
             point_test: false,
