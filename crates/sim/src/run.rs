@@ -95,7 +95,7 @@ pub fn step_count(duration: f64, dt: f64) -> usize {
 /// How often `summary.json` is rewritten while a run goes.
 const SUMMARY_EVERY_S: f64 = 1.0;
 
-/// Run, calling `inspect(world, metrics)` after every step.
+/// Run, calling `inspect(world, metrics)` after every measured step.
 pub fn run_with<const D: usize>(
     scene: Scene,
     out_dir: &Path,
@@ -103,78 +103,248 @@ pub fn run_with<const D: usize>(
     mut inspect: impl FnMut(&World<D>, &Metrics),
 ) -> Result<RunResult, SimError> {
     let start = Instant::now();
-    let name = scene.name.clone();
     let mut world = World::<D>::build_with(scene, opts.interrupt.clone())?;
-    let driven = world.driven();
-    let mut out = Output::create(
-        out_dir,
-        &world,
-        OutputOptions {
-            overwrite: opts.overwrite,
-        },
-    )?;
-    if !out.removed().is_empty() && opts.progress {
-        note(format_args!(
-            "[{name}] removed the outputs of an earlier run from {}: {}",
-            out_dir.display(),
-            crate::io::output::describe_outputs(out_dir, out.removed())
-        ));
+    let mut rec = Recorder::start_at(&world, out_dir, opts, start)?;
+    match drive(&mut world, &mut rec, opts, start, &mut inspect) {
+        Ok(()) => rec.finish(&world),
+        Err(e) => Err(rec.fail(&world, e)),
     }
-    let total_steps = step_count(world.scene.spec().time.duration, world.clock.dt);
-    let total_steps = opts.max_steps.map_or(total_steps, |m| m.min(total_steps));
-    let scene_copy = match &world.scene.source {
-        Some(text) => {
-            out.scene_copy(text)?;
-            Some(crate::io::output::SCENE_COPY.to_string())
+}
+
+/// The outputs of a run — `metrics.csv`, frames, `summary.json`, pictures — for a world stepped
+/// by whoever drives it: [`run_with`]'s loop, or a caller stepping (and steering) a [`World`]
+/// itself, as the Python package's `World.record` does. Made with [`Recorder::start`] (the
+/// initial row, frame and summary), told of every step with [`Recorder::record`], ended with
+/// [`Recorder::finish`] (or [`Recorder::fail`]); the same files as `femp run` for the same steps.
+pub struct Recorder {
+    out: Output,
+    summary: Summary,
+    all: Vec<Metrics>,
+    pictures: Option<Pictures>,
+    energy: EnergyWatch,
+    total_steps: usize,
+    frame_dt: f64,
+    next_frame: f64,
+    opts: RunOptions,
+    start: Instant,
+    last_summary: Instant,
+}
+
+impl Recorder {
+    /// Start recording `world` into `out_dir` (locked; an earlier run's outputs refused or,
+    /// with `opts.overwrite`, replaced): the scene's copy, `summary.json` (status `running`),
+    /// the initial metrics row, frame and pictures. `opts.max_steps` and the scene's duration
+    /// set how many steps the run is expected to take (the last is always measured; pictures
+    /// are spaced over them).
+    pub fn start<const D: usize>(
+        world: &World<D>,
+        out_dir: &Path,
+        opts: &RunOptions,
+    ) -> Result<Self, SimError> {
+        Self::start_at(world, out_dir, opts, Instant::now())
+    }
+
+    fn start_at<const D: usize>(
+        world: &World<D>,
+        out_dir: &Path,
+        opts: &RunOptions,
+        start: Instant,
+    ) -> Result<Self, SimError> {
+        let mut out = Output::create(
+            out_dir,
+            world,
+            OutputOptions {
+                overwrite: opts.overwrite,
+            },
+        )?;
+        if !out.removed().is_empty() && opts.progress {
+            note(format_args!(
+                "[{}] removed the outputs of an earlier run from {}: {}",
+                world.scene.name,
+                out_dir.display(),
+                crate::io::output::describe_outputs(out_dir, out.removed())
+            ));
         }
-        None => None,
-    };
-    let mut summary = start_summary(&world, scene_copy, opts);
-    // A summary from the start: a run killed outright still says `running` and what it is.
-    out.summary(&summary)?;
-    let mut all = Vec::new();
-    let mut pictures = None;
-    let ended = drive(
-        &mut world,
-        &mut out,
-        &mut summary,
-        &mut all,
-        &mut pictures,
-        total_steps,
-        opts,
-        start,
-        &mut inspect,
-    );
-    if let Some(p) = pictures.take() {
-        // Interrupted: stop at once, drawing nothing more.
-        let finished = if matches!(ended, Err(SimError::Interrupted { .. })) {
-            Ok(p.abandon())
-        } else {
-            p.finish(&world)
+        let total_steps = step_count(world.scene.spec().time.duration, world.clock.dt);
+        let total_steps = opts.max_steps.map_or(total_steps, |m| m.min(total_steps));
+        let scene_copy = match &world.scene.source {
+            Some(text) => {
+                out.scene_copy(text)?;
+                Some(crate::io::output::SCENE_COPY.to_string())
+            }
+            None => None,
         };
-        match (finished, &ended) {
-            (Ok(_), _) => {}
+        let mut summary = start_summary(world, scene_copy, opts);
+        // A summary from the start: a run killed outright still says `running` and what it is.
+        out.summary(&summary)?;
+        let mut all = Vec::new();
+        let mut pictures = None;
+        // A failed write of the initial state ends the run as any later one does: the summary
+        // says why.
+        let energy = match first_row(
+            world,
+            &mut out,
+            &mut summary,
+            &mut all,
+            &mut pictures,
+            total_steps,
+            opts,
+        ) {
+            Ok(e) => e,
+            // (`first_row` sets the pictures only once it has drawn them: none to close.)
+            Err(e) => {
+                return Err(finish_failed(&mut summary, &out, start, e, world.driven()));
+            }
+        };
+        let frame_dt = world
+            .scene
+            .spec()
+            .time
+            .frame_interval
+            .unwrap_or(world.clock.dt);
+        Ok(Self {
+            out,
+            summary,
+            all,
+            pictures,
+            energy,
+            total_steps,
+            frame_dt,
+            next_frame: world.clock.time + frame_dt,
+            opts: opts.clone(),
+            start,
+            last_summary: Instant::now(),
+        })
+    }
+
+    /// The number of steps the run is expected to take.
+    pub fn total_steps(&self) -> usize {
+        self.total_steps
+    }
+
+    /// The summary so far.
+    pub fn summary(&self) -> &Summary {
+        &self.summary
+    }
+
+    /// Record the step `world` just took (its `report`; it started at `started`): the step's
+    /// metrics row (every `opts.metrics_every` steps and the last), its frame when the frame
+    /// interval has passed, the pictures, the summary's totals (written at most a second
+    /// apart); `inspect(world, metrics)` after a measured step. An augury step that let a
+    /// boundary vertex through another body, or deeper than `augury.penetration_limit`, is the
+    /// error — after its row and frame are written.
+    pub fn record<const D: usize>(
+        &mut self,
+        world: &World<D>,
+        report: &StepReport,
+        started: Instant,
+        inspect: &mut impl FnMut(&World<D>, &Metrics),
+    ) -> Result<(), SimError> {
+        let clock = Instant::now();
+        let measured = sampled(world.clock.step, self.total_steps, self.opts.metrics_every);
+        let mut m = if measured {
+            world.measure()
+        } else {
+            Metrics::default()
+        };
+        let summary = &mut self.summary;
+        summary.timing.measure_s += clock.elapsed().as_secs_f64();
+        let clock = Instant::now();
+        record(&mut m, summary, report);
+        if measured {
+            (m.contact_forces, m.friction_forces) = world.body_forces(&report.pair_forces);
+            m.wall_s = started.elapsed().as_secs_f64();
+            self.out.metrics_row::<D>(&m)?;
+            self.energy.observe(&m, world.clock.step, summary);
+        }
+        summary.steps = world.clock.step;
+        summary.simulated_time = world.clock.time;
+        if !self.opts.no_frames && world.clock.time + 1e-12 >= self.next_frame {
+            self.out.frame(world)?;
+            self.next_frame += self.frame_dt;
+        }
+        // Augury: bodies that went through each other, or too deep into each other, stop the
+        // run (`augury.penetration_limit`), after the step's row and frame are written.
+        if let Some(e) = penetration_stop(world, &m, report) {
+            return Err(e);
+        }
+        // A large picture takes seconds: not after an interrupt, which ends the run at the
+        // next step.
+        if let Some(p) = self.pictures.as_mut()
+            && !world.interrupted()
+        {
+            p.update(world)?;
+        }
+        if measured {
+            inspect(world, &m);
+        }
+        if self.last_summary.elapsed().as_secs_f64() >= SUMMARY_EVERY_S {
+            self.summary.wall_s = self.start.elapsed().as_secs_f64();
+            self.summary.frames = self.out.frames();
+            self.out.summary(&self.summary)?;
+            self.last_summary = Instant::now();
+        }
+        self.summary.timing.output_s += clock.elapsed().as_secs_f64();
+        if measured && !self.opts.metrics_in_file_only {
+            self.all.push(m);
+        }
+        Ok(())
+    }
+
+    /// Write a frame of `world` as it is now, whether or not the frame interval has passed.
+    pub fn write_frame<const D: usize>(&mut self, world: &World<D>) -> Result<(), SimError> {
+        self.out.frame(world)
+    }
+
+    /// End the recording of `world`, completed: the pictures finished, the end's warnings
+    /// (penetrations, an energy rise nothing drove, substeps, …) and `summary.json` with status
+    /// `completed`; what was recorded.
+    pub fn finish<const D: usize>(mut self, world: &World<D>) -> Result<RunResult, SimError> {
+        let driven = world.driven();
+        if let Some(p) = self.pictures.take()
+            && let Err(d) = p.finish(world)
+        {
+            return Err(finish_failed(
+                &mut self.summary,
+                &self.out,
+                self.start,
+                d,
+                driven,
+            ));
+        }
+        let summary = &mut self.summary;
+        summary.status = "completed".into();
+        summary.wall_s = self.start.elapsed().as_secs_f64();
+        summary.frames = self.out.frames();
+        end_warnings(summary, driven);
+        self.out.summary(summary)?;
+        Ok(RunResult {
+            summary: self.summary,
+            metrics: self.all,
+            force_bodies: world.force_bodies().iter().map(|s| s.to_string()).collect(),
+        })
+    }
+
+    /// End the recording of `world` by the error `e` (a failed step or write, an interrupt):
+    /// the pictures drawn so far kept (an interrupt draws nothing more), and `summary.json`
+    /// with status `failed` (`interrupted`) and the error, which is handed back. Every file
+    /// written so far stays.
+    pub fn fail<const D: usize>(mut self, world: &World<D>, e: SimError) -> SimError {
+        let driven = world.driven();
+        if let Some(p) = self.pictures.take() {
+            let finished = if matches!(e, SimError::Interrupted { .. }) {
+                Ok(p.abandon())
+            } else {
+                p.finish(world)
+            };
             // The pictures up to a failure are worth keeping; a drawing error then must not
             // hide the run's own error.
-            (Err(d), Err(_)) => note(format_args!("warning: {d}")),
-            (Err(d), Ok(())) => {
-                return Err(finish_failed(&mut summary, &out, start, d, driven));
+            if let Err(d) = finished {
+                note(format_args!("warning: {d}"));
             }
         }
+        finish_failed(&mut self.summary, &self.out, self.start, e, driven)
     }
-    if let Err(e) = ended {
-        return Err(finish_failed(&mut summary, &out, start, e, driven));
-    }
-    summary.status = "completed".into();
-    summary.wall_s = start.elapsed().as_secs_f64();
-    summary.frames = out.frames();
-    end_warnings(&mut summary, driven);
-    out.summary(&summary)?;
-    Ok(RunResult {
-        summary,
-        metrics: all,
-        force_bodies: world.force_bodies().iter().map(|s| s.to_string()).collect(),
-    })
 }
 
 /// The summary of a run of `world` starting: what it is (scene, build, bodies, method) and the
@@ -384,27 +554,16 @@ fn announce(bar: Option<&indicatif::ProgressBar>, progress: bool, name: &str, li
     }
 }
 
-/// The steps of a run, with their output; returns at the first error (of a step or a write).
+/// The steps of a run, each recorded; returns at the first error (of a step or a write).
 fn drive<const D: usize>(
     world: &mut World<D>,
-    out: &mut Output,
-    summary: &mut Summary,
-    all: &mut Vec<Metrics>,
-    pictures: &mut Option<Pictures>,
-    total_steps: usize,
+    rec: &mut Recorder,
     opts: &RunOptions,
     start: Instant,
     inspect: &mut impl FnMut(&World<D>, &Metrics),
 ) -> Result<(), SimError> {
-    let name = summary.scene.clone();
-    let frame_dt = world
-        .scene
-        .spec()
-        .time
-        .frame_interval
-        .unwrap_or(world.clock.dt);
-    let mut energy = first_row(world, out, summary, all, pictures, total_steps, opts)?;
-    let mut next_frame = frame_dt;
+    let name = world.scene.name.clone();
+    let total_steps = rec.total_steps();
     let bar = (opts.progress && std::io::stderr().is_terminal()).then(|| {
         let b = indicatif::ProgressBar::new(total_steps as u64);
         b.set_style(
@@ -416,7 +575,6 @@ fn drive<const D: usize>(
         b
     });
     let mut last_line = Instant::now();
-    let mut last_summary = Instant::now();
     for _ in 0..total_steps {
         let t0 = Instant::now();
         let step = if world.interrupted() {
@@ -451,43 +609,7 @@ fn drive<const D: usize>(
             );
             announce(bar.as_ref(), opts.progress, &name, &line);
         }
-        let clock = Instant::now();
-        let measured = sampled(world.clock.step, total_steps, opts.metrics_every);
-        let mut m = if measured {
-            world.measure()
-        } else {
-            Metrics::default()
-        };
-        summary.timing.measure_s += clock.elapsed().as_secs_f64();
-        let clock = Instant::now();
-        record(&mut m, summary, &report);
-        if measured {
-            (m.contact_forces, m.friction_forces) = world.body_forces(&report.pair_forces);
-            m.wall_s = t0.elapsed().as_secs_f64();
-            out.metrics_row::<D>(&m)?;
-            energy.observe(&m, world.clock.step, summary);
-        }
-        summary.steps = world.clock.step;
-        summary.simulated_time = world.clock.time;
-        if !opts.no_frames && world.clock.time + 1e-12 >= next_frame {
-            out.frame(world)?;
-            next_frame += frame_dt;
-        }
-        // Augury: bodies that went through each other, or too deep into each other, stop the
-        // run (`augury.penetration_limit`), after the step's row and frame are written.
-        if let Some(e) = penetration_stop(world, &m, &report) {
-            return Err(e);
-        }
-        // A large picture takes seconds: not after an interrupt, which ends the run at the
-        // next step.
-        if let Some(p) = pictures.as_mut()
-            && !world.interrupted()
-        {
-            p.update(world)?;
-        }
-        if measured {
-            inspect(world, &m);
-        }
+        rec.record(world, &report, t0, inspect)?;
         let msg = if world.stepper.is_implicit() {
             format!(
                 "t = {:.4} s, Newton {}",
@@ -509,16 +631,6 @@ fn drive<const D: usize>(
                 world.clock.step,
             ));
             last_line = Instant::now();
-        }
-        if last_summary.elapsed().as_secs_f64() >= SUMMARY_EVERY_S {
-            summary.wall_s = start.elapsed().as_secs_f64();
-            summary.frames = out.frames();
-            out.summary(summary)?;
-            last_summary = Instant::now();
-        }
-        summary.timing.output_s += clock.elapsed().as_secs_f64();
-        if measured && !opts.metrics_in_file_only {
-            all.push(m);
         }
     }
     if let Some(b) = &bar {

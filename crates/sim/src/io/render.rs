@@ -177,8 +177,71 @@ pub struct Pictures {
     stress_max: f64,
     keys_done: usize,
     gif_done: usize,
-    gif: Option<DrawingArea<BitMapBackend<'static>, Shift>>,
+    gif: Option<Gif>,
     written: Vec<PathBuf>,
+}
+
+/// The animation: each frame drawn into one RGB buffer and encoded as it is drawn. The encoder
+/// is owned here (plotters' GIF backend holds its buffer behind an `Rc`), so pictures — and a
+/// recording with them — can move to the thread that steps the world.
+struct Gif {
+    encoder: gif::Encoder<std::io::BufWriter<std::fs::File>>,
+    buffer: Vec<u8>,
+    size: (u32, u32),
+    /// Between frames, in hundredths of a second.
+    delay: u16,
+}
+
+impl Gif {
+    fn create(path: &Path, size: (u32, u32), delay_ms: u32) -> Result<Self, SimError> {
+        let file = std::fs::File::create(path).map_err(|source| SimError::Io {
+            path: path.to_path_buf(),
+            source,
+        })?;
+        let mut encoder = gif::Encoder::new(
+            std::io::BufWriter::new(file),
+            size.0 as u16,
+            size.1 as u16,
+            &[],
+        )
+        .map_err(draw_err)?;
+        encoder
+            .set_repeat(gif::Repeat::Infinite)
+            .map_err(draw_err)?;
+        Ok(Self {
+            encoder,
+            buffer: vec![0; 3 * size.0 as usize * size.1 as usize],
+            size,
+            delay: (delay_ms.saturating_add(5) / 10).min(u16::MAX as u32) as u16,
+        })
+    }
+
+    /// Draw `scene` as the next frame.
+    fn frame(
+        &mut self,
+        scene: &Snapshot,
+        view: &View,
+        stress_max: f64,
+        t: f64,
+    ) -> Result<(), SimError> {
+        {
+            let area = BitMapBackend::with_buffer(&mut self.buffer, self.size).into_drawing_area();
+            scene.paint(&area, view, stress_max, t)?;
+            area.present().map_err(draw_err)?;
+        }
+        let mut frame =
+            gif::Frame::from_rgb_speed(self.size.0 as u16, self.size.1 as u16, &self.buffer, 10);
+        frame.delay = self.delay;
+        self.encoder.write_frame(&frame).map_err(draw_err)
+    }
+
+    /// Write the GIF's trailer and close it.
+    fn close(self) -> Result<(), SimError> {
+        self.encoder
+            .into_inner()
+            .and_then(|mut w| std::io::Write::flush(&mut w))
+            .map_err(draw_err)
+    }
 }
 
 fn draw_err(e: impl std::fmt::Display) -> SimError {
@@ -239,10 +302,11 @@ impl Pictures {
         };
         let view = View::new::<D>(pts.into_iter(), opts.size, up);
         let gif = if opts.gif_frames > 0 {
-            let path = dir.join("animation.gif");
-            let backend =
-                BitMapBackend::gif(&path, opts.size, opts.gif_delay_ms).map_err(draw_err)?;
-            Some(backend.into_drawing_area())
+            Some(Gif::create(
+                &dir.join("animation.gif"),
+                opts.size,
+                opts.gif_delay_ms,
+            )?)
         } else {
             None
         };
@@ -279,9 +343,8 @@ impl Pictures {
                 self.keys_done += 1;
             }
         }
-        if gif && let Some(area) = &self.gif {
-            scene.paint(area, &self.view, self.stress_max, t)?;
-            area.present().map_err(draw_err)?;
+        if gif && let Some(g) = self.gif.as_mut() {
+            g.frame(&scene, &self.view, self.stress_max, t)?;
             while due(self.gif_done, self.opts.gif_frames) {
                 self.gif_done += 1;
             }
@@ -324,11 +387,11 @@ impl Pictures {
     /// Stop without drawing anything more (an interrupted run): close the GIF if it holds a
     /// frame, else remove it (a GIF header alone is no picture). Returns every PNG written.
     pub fn abandon(mut self) -> Vec<PathBuf> {
-        if let Some(area) = self.gif.take() {
+        if let Some(g) = self.gif.take() {
             if self.gif_done > 0 {
-                let _ = area.present();
+                let _ = g.close();
             } else {
-                drop(area);
+                drop(g);
                 let _ = std::fs::remove_file(self.dir.join("animation.gif"));
             }
         }
@@ -343,8 +406,8 @@ impl Pictures {
             self.stress_max = self.stress_max.max(scene.stress_max);
             self.write_key(&scene, world.clock.time)?;
         }
-        if let Some(area) = self.gif.take() {
-            area.present().map_err(draw_err)?;
+        if let Some(g) = self.gif.take() {
+            g.close()?;
         }
         Ok(self.written)
     }
