@@ -36,6 +36,9 @@ pub struct ExplicitBody<const D: usize> {
     /// correction asked for and the prescription overrode — with [`Obstacles::Kinematic`], the
     /// reaction a fixed plate feels.
     pub contact_force: Vec<SVector<f64, D>>,
+    /// An external force on each vertex (N; N/m in 2D), or empty for none: it enters the
+    /// accelerations as gravity does, `a = g + (f − ∇Ψ)/m`, when they are next evaluated.
+    pub external: Vec<SVector<f64, D>>,
     /// The boundary (facets, normals).
     surface: Boundary<D>,
     /// The facets of each boundary vertex (CSR by position in `boundary`, facets ascending).
@@ -94,6 +97,7 @@ impl<const D: usize> ExplicitBody<D> {
             facet_normals: Vec::new(),
             force: vec![SVector::zeros(); n],
             contact_force: vec![SVector::zeros(); n],
+            external: Vec::new(),
         })
     }
 
@@ -436,11 +440,20 @@ impl<const D: usize> ExplicitSystem<D> {
                 b.a[k] = if b.fixed[k] {
                     SVector::zeros()
                 } else {
-                    g - b.force[k] / b.mass[k]
+                    match b.external.get(k) {
+                        Some(f) => g + (f - b.force[k]) / b.mass[k],
+                        None => g - b.force[k] / b.mass[k],
+                    }
                 };
             }
         }
         Ok(())
+    }
+
+    /// Positions or velocities were set from outside: the accelerations (elastic, gravity,
+    /// external, contact) are evaluated again, at the new state, before the next step.
+    pub fn state_changed(&mut self) {
+        self.started = false;
     }
 
     /// Penalty forces of the baseline, added to each body's `force` (which holds `∇Ψ`, so a

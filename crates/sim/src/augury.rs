@@ -341,16 +341,66 @@ impl<const D: usize> AuguryState<D> {
 }
 
 impl<const D: usize> AuguryState<D> {
-    /// One explicit step; the world's FEM bodies `fem` (step `step` at time `time`) take the
-    /// system's new state.
+    /// One explicit step with the forces and targets set from outside (`loads`); the world's
+    /// FEM bodies `fem` (step `step` at time `time`) take the system's new state.
     pub(crate) fn step(
         &mut self,
         fem: &mut [FemBody<D>],
+        loads: &crate::bodies::Loads<D>,
         step: usize,
         time: f64,
     ) -> Result<StepReport, SimError> {
         let clock = std::time::Instant::now();
-        let prescribed = &*fem;
+        // Forces act in the accelerations evaluated at this step's end; targeted vertices are
+        // not integrated but moved on their lines (as the scene's prescribed ones).
+        for (k, e) in self.system.bodies.iter_mut().enumerate() {
+            e.external.clear();
+            if let Some(f) = loads.fem.get(k).filter(|f| !f.is_empty()) {
+                e.external.extend_from_slice(f);
+            }
+            for t in loads.targets.get(k).map_or(&[][..], Vec::as_slice) {
+                e.fixed[t.vertex] = true;
+            }
+        }
+        let result = self.prescribed_step(fem, loads);
+        for (e, b) in self.system.bodies.iter_mut().zip(fem.iter()) {
+            e.fixed.clone_from(&b.fixed);
+        }
+        self.finish_step(fem, result, step, time, clock)
+    }
+
+    /// The explicit step with the scene's prescribed motion and the targets set from outside.
+    fn prescribed_step(
+        &mut self,
+        fem: &[FemBody<D>],
+        loads: &crate::bodies::Loads<D>,
+    ) -> Result<usize, femp_augury::AuguryError> {
+        self.system.step_with(|k, t, x, v| {
+            let body = &fem[k];
+            for (ids, motion) in &body.prescribed {
+                let r = motion.at(t);
+                for &i in ids {
+                    x[i] = r.apply(&body.initial[i]);
+                    v[i] = motion.velocity(t, &body.initial[i]);
+                }
+            }
+            for tg in loads.targets.get(k).map_or(&[][..], Vec::as_slice) {
+                x[tg.vertex] = tg.at(t);
+                v[tg.vertex] = tg.velocity();
+            }
+        })
+    }
+
+    /// The checks and bookkeeping after an explicit step (`result`): a failure or a blow-up as
+    /// the step's error, else the world's FEM bodies take the system's state.
+    fn finish_step(
+        &mut self,
+        fem: &mut [FemBody<D>],
+        result: Result<usize, femp_augury::AuguryError>,
+        step: usize,
+        time: f64,
+        clock: std::time::Instant,
+    ) -> Result<StepReport, SimError> {
         let hint = |aug: &AuguryState<D>| {
             if aug.system.params.dt > aug.stable_dt {
                 format!(
@@ -361,16 +411,6 @@ impl<const D: usize> AuguryState<D> {
                 String::new()
             }
         };
-        let result = self.system.step_with(|k, t, x, v| {
-            let body = &prescribed[k];
-            for (ids, motion) in &body.prescribed {
-                let r = motion.at(t);
-                for &i in ids {
-                    x[i] = r.apply(&body.initial[i]);
-                    v[i] = motion.velocity(t, &body.initial[i]);
-                }
-            }
-        });
         let iterations = result.map_err(|e| SimError::StepFailed {
             step,
             time,

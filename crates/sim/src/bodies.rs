@@ -25,6 +25,76 @@ pub struct Bodies<const D: usize> {
     pub pairs: Vec<Pair<D>>,
     /// Level-set boundaries.
     pub boundaries: Vec<LevelSet<D>>,
+    /// Forces and prescribed positions set from outside for the next step
+    /// ([`crate::steer`]).
+    pub loads: Loads<D>,
+}
+
+/// What acts on the bodies from outside during the next step.
+#[derive(Clone, Debug, Default)]
+pub struct Loads<const D: usize> {
+    /// The force on each MPM particle (N; N/m in 2D), or empty for none.
+    pub particles: Vec<SVector<f64, D>>,
+    /// Per FEM body (scene order of FEM bodies): the force on each vertex, or empty for none.
+    pub fem: Vec<Vec<SVector<f64, D>>>,
+    /// Per FEM body: vertices moved to a target by the step's end.
+    pub targets: Vec<Vec<Target<D>>>,
+    /// Whether anything has been set from outside since the world was built: the bodies' total
+    /// energy is then no longer the scene's alone to account for.
+    pub steered: bool,
+}
+
+/// A FEM vertex moved from `from` (at time `t0`) to `to` (at `t1`) on a straight line.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Target<const D: usize> {
+    /// The vertex.
+    pub vertex: usize,
+    /// Where it is at `t0`.
+    pub from: SVector<f64, D>,
+    /// Where it is at `t1`.
+    pub to: SVector<f64, D>,
+    /// The step's start.
+    pub t0: f64,
+    /// The step's end.
+    pub t1: f64,
+}
+
+impl<const D: usize> Target<D> {
+    /// Where the vertex is at time `t` (held at the ends outside `[t0, t1]`).
+    pub fn at(&self, t: f64) -> SVector<f64, D> {
+        let s = ((t - self.t0) / (self.t1 - self.t0)).clamp(0.0, 1.0);
+        self.from + (self.to - self.from) * s
+    }
+
+    /// Its velocity on the way.
+    pub fn velocity(&self) -> SVector<f64, D> {
+        (self.to - self.from) / (self.t1 - self.t0)
+    }
+}
+
+impl<const D: usize> Loads<D> {
+    /// No force and no target.
+    pub fn is_empty(&self) -> bool {
+        self.particles.is_empty()
+            && self.fem.iter().all(Vec::is_empty)
+            && self.targets.iter().all(Vec::is_empty)
+    }
+
+    /// Forget the forces and targets (after the step they acted in).
+    pub(crate) fn clear(&mut self) {
+        self.particles.clear();
+        self.fem.iter_mut().for_each(Vec::clear);
+        self.targets.iter_mut().for_each(Vec::clear);
+    }
+
+    /// The force on FEM body `b`'s vertex `v` (0 without one).
+    pub(crate) fn fem_force(&self, b: usize, v: usize) -> SVector<f64, D> {
+        self.fem
+            .get(b)
+            .and_then(|f| f.get(v))
+            .copied()
+            .unwrap_or_else(SVector::zeros)
+    }
 }
 
 /// Which particle–grid transfer MPM uses.

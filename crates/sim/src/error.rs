@@ -62,6 +62,18 @@ pub enum SimError {
         /// Simulated time reached.
         time: f64,
     },
+    /// The code driving a world stopped its run (a Python loop that raised, say).
+    #[error(
+        "stopped after step {step} (t = {time:.6e} s) by the code driving the world: {message}"
+    )]
+    Stopped {
+        /// Steps completed.
+        step: usize,
+        /// Simulated time reached.
+        time: f64,
+        /// Why.
+        message: String,
+    },
     /// Another run holds the output directory's lock.
     #[error(
         "{}: another femp run is writing into this directory (it holds {}); wait for it to end or choose another --out",
@@ -101,6 +113,17 @@ pub enum SimError {
         /// The field that sets the size.
         field: String,
         /// The estimate, the limit and how to change either.
+        message: String,
+    },
+    /// A state, load or parameter set on a world from outside ([`crate::World::set_particle_positions`]
+    /// and the rest of `crate::steer`) that the world refuses: a wrong shape, a non-finite
+    /// value, a body put into another, an inverted element, a vertex the scene already moves.
+    /// The world is unchanged.
+    #[error("{what}: {message}")]
+    State {
+        /// What was set (`particles.x`, `fem[plate].v`, …).
+        what: String,
+        /// Why it was refused.
         message: String,
     },
     /// An error from a library crate while building the world.

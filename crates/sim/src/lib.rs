@@ -12,6 +12,10 @@
 //!   or one explicit augury step; [`World::contact_forces`] gives the barrier (reaction) forces.
 //! * [`run`](run::run) — a whole run with output (`.vtu`/`.pvd` frames, `metrics.csv`,
 //!   `summary.json`) and progress.
+//!   [`run::Recorder`] writes the same outputs for a world stepped by any other loop.
+//! * [`steer`] — a world steered between steps: positions and velocities set (checked as a
+//!   scene's initial state is), external forces and prescribed FEM vertex positions for the next
+//!   step, friction and materials changed.
 //!
 //! Inside: a [`World`] is its bodies ([`world::Bodies`], in `bodies`: MPM particles and grid, FEM
 //! bodies, contact pairs, level sets, point-in-body queries), its [`world::Clock`] and its
@@ -40,6 +44,7 @@ mod overlap;
 mod report;
 pub mod run;
 pub mod scene;
+pub mod steer;
 mod step;
 mod stepper;
 pub mod sweep;

@@ -78,6 +78,8 @@ struct GridState<const D: usize> {
     grid_v: Vec<SVector<f64, D>>,
     grid_a: Vec<SVector<f64, D>>,
     grid_x: Vec<SVector<f64, D>>,
+    /// External forces on the particles spread to the nodes, `Σ_p w_ip f_p` (empty: none).
+    grid_f: Vec<SVector<f64, D>>,
 }
 
 /// The unknowns of one step and what they start from (see `Parts::setup`).
@@ -95,6 +97,8 @@ pub(crate) struct StepSetup<const D: usize> {
     pub(crate) target: Vec<f64>,
     pub(crate) penalties: Vec<Penalty<D>>,
     pub(crate) x_hat: Vec<f64>,
+    /// External force per DOF set from outside ([`crate::steer`]), or empty for none.
+    pub(crate) force: Vec<f64>,
     pub(crate) transfers_s: f64,
 }
 
@@ -287,6 +291,7 @@ impl Bfemp {
                 mass: &s.mass,
                 x_hat: &raw,
                 gravity: SVector::zeros(),
+                force: &[],
                 penalties: &[],
             },
             &s.x0,
@@ -668,6 +673,7 @@ impl<const D: usize> Parts<'_, D> {
             grid_v,
             grid_a,
             grid_x,
+            grid_f,
         } = self.particles_to_grid(integrator)?;
         let transfers_s = clock.elapsed().as_secs_f64();
         // 2. DOF layout: grid nodes, then FEM vertices body by body.
@@ -683,6 +689,13 @@ impl<const D: usize> Parts<'_, D> {
         let mut a0 = vec![0.0; n_dofs];
         let mut fixed = vec![false; n_dofs];
         let mut target = vec![0.0; n_dofs];
+        let loads = &self.bodies.loads;
+        let forced = !loads.particles.is_empty() || loads.fem.iter().any(|f| !f.is_empty());
+        let mut force = if forced {
+            vec![0.0; n_dofs]
+        } else {
+            Vec::new()
+        };
         let max_m = grid_m.iter().copied().fold(0.0, f64::max);
         for i in 0..n_grid {
             for a in 0..D {
@@ -691,6 +704,9 @@ impl<const D: usize> Parts<'_, D> {
                 x0[d] = grid_x[i][a];
                 v0[d] = grid_v[i][a];
                 a0[d] = grid_a[i][a];
+                if let Some(f) = grid_f.get(i) {
+                    force[d] = f[a];
+                }
                 // Nodes a particle touches with weight ~0 carry no mass: pin them.
                 if grid_m[i] <= 1e-14 * max_m {
                     fixed[d] = true;
@@ -719,9 +735,18 @@ impl<const D: usize> Parts<'_, D> {
                     mass[d] = body.mass[vtx];
                     x0[d] = body.x[vtx][a];
                     v0[d] = body.v[vtx][a];
+                    let f = if forced {
+                        loads.fem_force(b, vtx)[a]
+                    } else {
+                        0.0
+                    };
+                    if forced {
+                        force[d] = f;
+                    }
                     if integrator.needs_acceleration() && mass[d] > 0.0 {
-                        a0[d] =
-                            body.a[vtx][a] + self.bodies.gravity[a] - gradient[vtx][a] / mass[d];
+                        a0[d] = body.a[vtx][a]
+                            + self.bodies.gravity[a]
+                            + (f - gradient[vtx][a]) / mass[d];
                     }
                 }
             }
@@ -734,6 +759,15 @@ impl<const D: usize> Parts<'_, D> {
                         fixed[d] = true;
                         target[d] = p[a];
                     }
+                }
+            }
+            // Vertices prescribed from outside: on their straight line at this (sub)step's end.
+            for t in loads.targets.get(b).map_or(&[][..], Vec::as_slice) {
+                let p = t.at(t1);
+                for a in 0..D {
+                    let d = fem_offset[b] + t.vertex * D + a;
+                    fixed[d] = true;
+                    target[d] = p[a];
                 }
             }
         }
@@ -757,6 +791,7 @@ impl<const D: usize> Parts<'_, D> {
             target,
             penalties,
             x_hat,
+            force,
             transfers_s,
         })
     }
@@ -769,6 +804,8 @@ impl<const D: usize> Parts<'_, D> {
         let mut grid_v: Vec<SVector<f64, D>> = Vec::new();
         let mut grid_a: Vec<SVector<f64, D>> = Vec::new();
         let mut grid_x: Vec<SVector<f64, D>> = Vec::new();
+        let mut grid_f: Vec<SVector<f64, D>> = Vec::new();
+        let forces = &self.bodies.loads.particles;
         if let Some(m) = self.bodies.mpm.as_mut() {
             m.stencils.rebuild(&m.x).map_err(|e| SimError::StepFailed {
                 step: self.clock.step,
@@ -790,6 +827,15 @@ impl<const D: usize> Parts<'_, D> {
                     time: self.clock.time,
                     message: e.to_string(),
                 })?;
+            if !forces.is_empty() {
+                grid_f = vec![SVector::zeros(); n_grid];
+                transfer::p2g_vector(&m.stencils, &vec![1.0; forces.len()], forces, &mut grid_f)
+                    .map_err(|e| SimError::StepFailed {
+                        step: self.clock.step,
+                        time: self.clock.time,
+                        message: e.to_string(),
+                    })?;
+            }
             grid_a = vec![SVector::zeros(); n_grid];
             if integrator.needs_acceleration() {
                 // Newmark's start-of-step acceleration (grid here, FEM vertices below): the
@@ -813,10 +859,14 @@ impl<const D: usize> Parts<'_, D> {
                 crate::objective::particles::start_gradient(m, &mut gradient);
                 // Nodes with next to no mass are pinned (below): no division by it.
                 let tiny = 1e-14 * grid_m.iter().copied().fold(0.0, f64::max);
-                for ((a, f), &mi) in grid_a.iter_mut().zip(&gradient).zip(&grid_m) {
+                for (i, ((a, f), &mi)) in grid_a.iter_mut().zip(&gradient).zip(&grid_m).enumerate()
+                {
                     *a += self.bodies.gravity;
                     if mi > tiny {
                         *a -= f / mi;
+                        if let Some(fe) = grid_f.get(i) {
+                            *a += fe / mi;
+                        }
                     }
                 }
             }
@@ -829,6 +879,7 @@ impl<const D: usize> Parts<'_, D> {
             grid_v,
             grid_a,
             grid_x,
+            grid_f,
         })
     }
 
@@ -1086,6 +1137,7 @@ impl<const D: usize> StepSetup<D> {
                 mass: &self.mass,
                 x_hat: &self.x_hat,
                 gravity: bodies.gravity,
+                force: &self.force,
                 penalties: &self.penalties,
             },
             &self.x0,

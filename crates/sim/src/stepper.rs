@@ -106,7 +106,8 @@ impl<const D: usize> Stepper<D> {
                     });
                 }
                 let before = bodies.positions();
-                let mut report = aug.step(&mut bodies.fem, clock.step, clock.time)?;
+                let mut report =
+                    aug.step(&mut bodies.fem, &bodies.loads, clock.step, clock.time)?;
                 clock.time = aug.system.time;
                 clock.step += 1;
                 report.swept = augury_sweep(bodies, &before);

@@ -128,6 +128,7 @@ impl<const D: usize> World<D> {
             fem,
             pairs,
             boundaries,
+            loads: Default::default(),
         };
         let interrupted = || {
             interrupt
@@ -161,10 +162,16 @@ impl<const D: usize> World<D> {
     /// the deepest path named and the world back at the step's start. The report says how many
     /// substeps the step took and counts the work of every attempt. An augury step's paths are
     /// checked too (every FEM body's boundary vertices against every other body) and reported.
+    ///
+    /// Forces and prescribed positions set from outside ([`crate::steer`]) act in this step and
+    /// are cleared once it succeeds.
     pub fn step(&mut self) -> Result<StepReport, SimError> {
         let interrupted = self.interrupted();
-        self.stepper
-            .step(&self.scene, &mut self.bodies, &mut self.clock, interrupted)
+        let report =
+            self.stepper
+                .step(&self.scene, &mut self.bodies, &mut self.clock, interrupted)?;
+        self.bodies.loads.clear();
+        Ok(report)
     }
 
     /// Where the particles and FEM vertices are now.
@@ -228,12 +235,15 @@ impl<const D: usize> World<D> {
     }
 
     /// Whether anything outside the bodies does work on them: a prescribed vertex set or a
-    /// level-set boundary that moves (then the total energy may rise legitimately).
+    /// level-set boundary that moves, or a state, force or target set from outside
+    /// ([`crate::steer`]) (then the total energy may rise legitimately).
     pub fn driven(&self) -> bool {
-        self.bodies
-            .fem
-            .iter()
-            .any(|b| b.prescribed.iter().any(|(_, m)| m.moves()))
+        self.bodies.loads.steered
+            || self
+                .bodies
+                .fem
+                .iter()
+                .any(|b| b.prescribed.iter().any(|(_, m)| m.moves()))
             || self.bodies.boundaries.iter().any(|b| b.motion.moves())
     }
 
@@ -247,7 +257,7 @@ impl<const D: usize> World<D> {
 
 /// Reject bodies that start overlapping (BFEMP eq. 15): a particle or FEM vertex inside (or on
 /// the boundary of) another body's elements, or MPM bodies whose particles interleave.
-fn check_overlaps<const D: usize>(
+pub(crate) fn check_overlaps<const D: usize>(
     bodies: &Bodies<D>,
     interrupted: impl Fn() -> bool,
 ) -> Result<(), SimError> {

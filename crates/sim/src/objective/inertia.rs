@@ -1,4 +1,5 @@
-//! Inertia, gravity and the slip penalties: `½‖x − x̂‖²_M − w Σ m g·x + Σ ½ k (n·x_i − c)²`.
+//! Inertia, gravity, external forces and the slip penalties:
+//! `½‖x − x̂‖²_M − w Σ (m g + f)·x + Σ ½ k (n·x_i − c)²`.
 
 use femp_solver::Triplets;
 use nalgebra::SVector;
@@ -26,12 +27,15 @@ impl<const D: usize> Penalty<D> {
     }
 }
 
-/// The quadratic terms of the step: inertia about the predictor `x̂`, gravity, penalties.
+/// The quadratic terms of the step: inertia about the predictor `x̂`, gravity, external
+/// forces, penalties.
 pub(crate) struct Inertia<'a, const D: usize> {
     /// Mass per DOF (the diagonal of `M`).
     pub mass: &'a [f64],
     pub x_hat: &'a [f64],
     pub gravity: SVector<f64, D>,
+    /// External force per DOF ([`crate::steer`]), or empty for none.
+    pub force: &'a [f64],
     pub penalties: &'a [Penalty<D>],
 }
 
@@ -42,6 +46,9 @@ impl<const D: usize> Inertia<'_, D> {
         for d in 0..self.mass.len() {
             let r = x[d] - self.x_hat[d];
             e += 0.5 * self.mass[d] * r * r - w * self.mass[d] * self.gravity[d % D] * x[d];
+        }
+        for (f, x) in self.force.iter().zip(x) {
+            e -= w * f * x;
         }
         for p in self.penalties {
             let r = p.n.dot(&block(x, p.node)) - p.target;
@@ -54,6 +61,9 @@ impl<const D: usize> Inertia<'_, D> {
     pub fn set_gradient(&self, x: &[f64], w: f64, g: &mut [f64]) {
         for d in 0..self.mass.len() {
             g[d] = self.mass[d] * (x[d] - self.x_hat[d]) - w * self.mass[d] * self.gravity[d % D];
+        }
+        for (g, f) in g.iter_mut().zip(self.force) {
+            *g -= w * f;
         }
         for p in self.penalties {
             let gp = p.gradient(x);

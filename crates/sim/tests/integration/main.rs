@@ -12,6 +12,7 @@ mod pictures;
 mod resolved;
 mod sampling;
 mod stabilized;
+mod steer;
 mod trust;
 mod tunnelling;
 
