@@ -8,8 +8,8 @@
 //! `KeyboardInterrupt`.
 
 use std::path::PathBuf;
-use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
 use femp::SimError;
@@ -47,6 +47,12 @@ create_exception!(
 );
 create_exception!(
     _femp,
+    StateError,
+    FempError,
+    "A state, force, target or parameter set on a World that it refuses (a wrong shape, a non-finite value, a body put into another, an inverted element, a vertex the scene moves): the World is unchanged."
+);
+create_exception!(
+    _femp,
     OutputError,
     FempError,
     "An output directory that is busy (another run holds it) or holds an earlier run's outputs."
@@ -62,6 +68,7 @@ fn py_err(e: SimError) -> PyErr {
         | SimError::Overlap { .. }
         | SimError::TooLarge { .. } => SceneError::new_err(msg),
         SimError::Interrupted { .. } => PyKeyboardInterrupt::new_err(msg),
+        SimError::State { .. } => StateError::new_err(msg),
         SimError::OutputBusy { .. }
         | SimError::StaleOutput { .. }
         | SimError::OutputLink { .. } => OutputError::new_err(msg),
@@ -270,12 +277,82 @@ macro_rules! with_world {
 }
 
 /// A simulation state that steps on demand: `step()` advances one time step (BFEMP or augury,
-/// as the scene says); positions, velocities and forces read out as numpy arrays (copies).
+/// as the scene says); positions, velocities and forces read out as numpy arrays (copies) and
+/// are set, with forces and prescribed vertex positions for the next step, through the
+/// setters; `record()` writes what `femp run` writes for the steps that follow.
 #[pyclass(name = "World", module = "femp")]
 struct PyWorld {
+    /// The world and what goes with it, shared with the worker thread that steps it.
+    state: Arc<Mutex<WorldState>>,
+    /// The thread that steps this World, made at the first step and kept: one long-lived
+    /// worker per World, so a loop of single steps pays no thread start (nor loses the
+    /// thread's caches) per call.
+    worker: Option<Worker>,
+}
+
+/// A World's state.
+struct WorldState {
     world: AnyWorld,
     /// The last step's report (its solver columns and contact forces go into `metrics()`).
     last: Option<femp::StepReport>,
+    /// The recording in progress (`record()` .. `stop_recording()`).
+    recorder: Option<femp::run::Recorder>,
+}
+
+/// A job for a World's worker thread.
+type Job = Box<dyn FnOnce() + Send>;
+
+/// A World's worker thread: runs the jobs it is sent, in order, until the World is dropped.
+struct Worker {
+    jobs: Option<std::sync::mpsc::Sender<Job>>,
+    thread: Option<std::thread::JoinHandle<()>>,
+}
+
+impl Worker {
+    fn spawn() -> PyResult<Self> {
+        let (tx, rx) = std::sync::mpsc::channel::<Job>();
+        let thread = std::thread::Builder::new()
+            .name("femp-world".into())
+            .spawn(move || {
+                for job in rx {
+                    job();
+                }
+            })
+            .map_err(|e| SimulationError::new_err(format!("could not start a thread: {e}")))?;
+        Ok(Self {
+            jobs: Some(tx),
+            thread: Some(thread),
+        })
+    }
+}
+
+impl Drop for Worker {
+    fn drop(&mut self) {
+        // Closing the channel ends the thread's loop; no job is running (the World waits for
+        // each).
+        drop(self.jobs.take());
+        if let Some(t) = self.thread.take() {
+            let _ = t.join();
+        }
+    }
+}
+
+/// The rows of an (n, D) array.
+fn rows<const D: usize>(
+    a: &PyReadonlyArray2<'_, f64>,
+    what: &str,
+) -> PyResult<Vec<SVector<f64, D>>> {
+    let a = a.as_array();
+    if a.ncols() != D {
+        return Err(StateError::new_err(format!(
+            "{what}: shape ({}, {}), expected (n, {D})",
+            a.nrows(),
+            a.ncols()
+        )));
+    }
+    Ok((0..a.nrows())
+        .map(|i| SVector::from_fn(|k, _| a[(i, k)]))
+        .collect())
 }
 
 fn vectors<const D: usize>(v: &[SVector<f64, D>]) -> Array2<f64> {
@@ -297,7 +374,155 @@ fn report_dict<'py>(py: Python<'py>, r: &femp::StepReport) -> PyResult<Bound<'py
     Ok(d)
 }
 
+/// Set the particles' positions and/or velocities: both or neither.
+fn set_particles_d<const D: usize>(
+    w: &mut femp::World<D>,
+    x: Option<&PyReadonlyArray2<'_, f64>>,
+    v: Option<&PyReadonlyArray2<'_, f64>>,
+) -> PyResult<()> {
+    let x = x.map(|a| rows::<D>(a, "particles.x")).transpose()?;
+    let v = v.map(|a| rows::<D>(a, "particles.v")).transpose()?;
+    let old_v = w.bodies.mpm.as_ref().map(|m| m.v.clone());
+    if let Some(v) = v {
+        w.set_particle_velocities(&v).map_err(py_err)?;
+    }
+    if let Some(x) = x
+        && let Err(e) = w.set_particle_positions(&x)
+    {
+        if let (Some(m), Some(old)) = (w.bodies.mpm.as_mut(), old_v) {
+            m.v = old;
+        }
+        return Err(py_err(e));
+    }
+    Ok(())
+}
+
+/// Set FEM body `name`'s positions and/or velocities: both or neither.
+fn set_fem_d<const D: usize>(
+    w: &mut femp::World<D>,
+    name: &str,
+    x: Option<&PyReadonlyArray2<'_, f64>>,
+    v: Option<&PyReadonlyArray2<'_, f64>>,
+) -> PyResult<()> {
+    let x = x
+        .map(|a| rows::<D>(a, &format!("fem[{name}].x")))
+        .transpose()?;
+    let v = v
+        .map(|a| rows::<D>(a, &format!("fem[{name}].v")))
+        .transpose()?;
+    let b = w.fem_index(name).map_err(py_err)?;
+    let old_v = w.bodies.fem[b].v.clone();
+    if let Some(v) = v {
+        w.set_fem_velocities(name, &v).map_err(py_err)?;
+    }
+    if let Some(x) = x
+        && let Err(e) = w.set_fem_positions(name, &x)
+    {
+        // Back to the velocities it had (accepted before, so accepted again).
+        let _ = w.set_fem_velocities(name, &old_v);
+        return Err(py_err(e));
+    }
+    Ok(())
+}
+
+/// `n` steps of `w`, each recorded by `rec` if recording: the last step's report.
+fn steps<const D: usize>(
+    w: &mut femp::World<D>,
+    n: usize,
+    mut rec: Option<&mut femp::run::Recorder>,
+) -> Result<Option<femp::StepReport>, SimError> {
+    let mut last = None;
+    for _ in 0..n {
+        if w.interrupted() {
+            return Err(SimError::Interrupted {
+                step: w.clock.step,
+                time: w.clock.time,
+            });
+        }
+        let t0 = std::time::Instant::now();
+        let r = w.step()?;
+        if let Some(rec) = rec.as_deref_mut() {
+            rec.record(w, &r, t0, &mut |_, _| {})?;
+        }
+        last = Some(r);
+    }
+    Ok(last)
+}
+
+/// The state behind `m`, even if a panicking step poisoned the lock (the panic was reported
+/// as a bug already).
+fn lock(m: &Mutex<WorldState>) -> std::sync::MutexGuard<'_, WorldState> {
+    m.lock().unwrap_or_else(std::sync::PoisonError::into_inner)
+}
+
 impl PyWorld {
+    fn st(&self) -> std::sync::MutexGuard<'_, WorldState> {
+        lock(&self.state)
+    }
+
+    /// Run `f` on this World's worker thread (started at the first call) with the GIL
+    /// released, as [`interruptible`] does on a thread of its own: Ctrl-C sets the flag `f`
+    /// was given, waits for `f` to stop and raises `KeyboardInterrupt`.
+    fn on_worker<T: Send + 'static>(
+        &mut self,
+        py: Python<'_>,
+        f: impl FnOnce(Arc<AtomicBool>) -> T + Send + 'static,
+    ) -> PyResult<T> {
+        use std::sync::mpsc::{RecvTimeoutError, channel};
+        let flag = Arc::new(AtomicBool::new(false));
+        let (tx, rx) = channel();
+        let job: Job = {
+            let flag = flag.clone();
+            Box::new(move || {
+                // The World waits for this result; a send fails only if it stopped waiting.
+                let _ = tx.send(f(flag));
+            })
+        };
+        // A worker whose thread died (a panic in an earlier job) is replaced.
+        let mut job = Some(job);
+        for _ in 0..2 {
+            if self.worker.is_none() {
+                self.worker = Some(Worker::spawn()?);
+            }
+            let sender = self.worker.as_ref().and_then(|w| w.jobs.as_ref());
+            match sender.map(|t| t.send(job.take().expect("not yet sent"))) {
+                Some(Ok(())) => break,
+                Some(Err(back)) => {
+                    job = Some(back.0);
+                    self.worker = None;
+                }
+                None => self.worker = None,
+            }
+        }
+        if job.is_some() {
+            return Err(SimulationError::new_err(
+                "femp could not hand the step to its worker thread (a bug: please report it)",
+            ));
+        }
+        let mut rx = rx;
+        loop {
+            // The receiver is moved into the GIL-free closure and back (it is Send, not Sync).
+            let (got, back) = py.detach(move || (rx.recv_timeout(Duration::from_millis(20)), rx));
+            rx = back;
+            match got {
+                Ok(v) => return Ok(v),
+                Err(RecvTimeoutError::Timeout) => {
+                    if let Err(e) = py.check_signals() {
+                        flag.store(true, Ordering::SeqCst);
+                        let _ = py.detach(move || rx.recv().is_ok());
+                        return Err(e);
+                    }
+                }
+                Err(RecvTimeoutError::Disconnected) => {
+                    self.worker = None;
+                    return Err(SimulationError::new_err(
+                        "femp panicked (a bug: please report it)",
+                    ));
+                }
+            }
+        }
+    }
+
     fn particles_d<'py, const D: usize>(
         py: Python<'py>,
         w: &femp::World<D>,
@@ -396,7 +621,14 @@ impl PyWorld {
                 _ => femp::World::<3>::build(scene).map(|w| AnyWorld::D3(Box::new(w))),
             })
             .map_err(py_err)?;
-        Ok(Self { world, last: None })
+        Ok(Self {
+            state: Arc::new(Mutex::new(WorldState {
+                world,
+                last: None,
+                recorder: None,
+            })),
+            worker: None,
+        })
     }
 
     /// Advance `n` time steps (default 1); returns the last step's solver report
@@ -404,29 +636,45 @@ impl PyWorld {
     /// `contact_terms`, `min_distance`). A failed step raises `SimulationError`; Ctrl-C, `KeyboardInterrupt`.
     #[pyo3(signature = (n = 1))]
     fn step<'py>(&mut self, py: Python<'py>, n: usize) -> PyResult<Bound<'py, PyDict>> {
-        let world = &mut self.world;
-        let report = interruptible(py, |flag| {
+        let state = self.state.clone();
+        let stepped = self.on_worker(py, move |flag| {
+            let mut s = lock(&state);
+            let WorldState {
+                world, recorder, ..
+            } = &mut *s;
             with_world!(world, w => {
                 w.set_interrupt(Some(flag));
-                let mut last = None;
-                for _ in 0..n {
-                    match w.step() {
-                        Ok(r) => last = Some(r),
-                        Err(e) => {
-                            w.set_interrupt(None);
-                            return Err(e);
-                        }
-                    }
-                }
+                let r = steps(w, n, recorder.as_mut());
                 w.set_interrupt(None);
-                Ok(last)
+                r
             })
-        })?
-        .map_err(py_err)?;
+        });
+        let mut s = self.st();
+        // A step (or a recorded write) that failed ends the recording with the summary saying
+        // why, as a failed `femp run` does; so does Ctrl-C (`interrupted`).
+        let report = match stepped {
+            Ok(Ok(r)) => r,
+            Ok(Err(e)) => {
+                let e = match s.recorder.take() {
+                    Some(rec) => with_world!(&s.world, w => rec.fail(w, e)),
+                    None => e,
+                };
+                return Err(py_err(e));
+            }
+            Err(interrupt) => {
+                if let Some(rec) = s.recorder.take() {
+                    let _ = with_world!(&s.world, w => {
+                        let (step, time) = (w.clock.step, w.clock.time);
+                        rec.fail(w, SimError::Interrupted { step, time })
+                    });
+                }
+                return Err(interrupt);
+            }
+        };
         match report {
             Some(r) => {
                 let d = report_dict(py, &r);
-                self.last = Some(r);
+                s.last = Some(r);
                 d
             }
             None => Ok(PyDict::new(py)),
@@ -436,25 +684,29 @@ impl PyWorld {
     /// Simulated time (s).
     #[getter]
     fn time(&self) -> f64 {
-        with_world!(&self.world, w => w.clock.time)
+        let s = self.st();
+        with_world!(&s.world, w => w.clock.time)
     }
 
     /// Steps taken.
     #[getter]
     fn steps(&self) -> usize {
-        with_world!(&self.world, w => w.clock.step)
+        let s = self.st();
+        with_world!(&s.world, w => w.clock.step)
     }
 
     /// The time step (s).
     #[getter]
     fn dt(&self) -> f64 {
-        with_world!(&self.world, w => w.clock.dt)
+        let s = self.st();
+        with_world!(&s.world, w => w.clock.dt)
     }
 
     /// 2 or 3.
     #[getter]
     fn dimension(&self) -> usize {
-        match self.world {
+        let s = self.st();
+        match s.world {
             AnyWorld::D2(_) => 2,
             AnyWorld::D3(_) => 3,
         }
@@ -463,13 +715,15 @@ impl PyWorld {
     /// Names of the FEM bodies.
     #[getter]
     fn fem_bodies(&self) -> Vec<String> {
-        with_world!(&self.world, w => w.bodies.fem.iter().map(|b| b.name.clone()).collect())
+        let s = self.st();
+        with_world!(&s.world, w => w.bodies.fem.iter().map(|b| b.name.clone()).collect())
     }
 
     /// Names of the MPM bodies (`particles()["body"]` indexes this list).
     #[getter]
     fn mpm_bodies(&self) -> Vec<String> {
-        with_world!(&self.world, w => w.bodies.mpm.as_ref().map_or_else(Vec::new, |m| {
+        let s = self.st();
+        with_world!(&s.world, w => w.bodies.mpm.as_ref().map_or_else(Vec::new, |m| {
             m.bodies.iter().map(|b| b.name.clone()).collect()
         }))
     }
@@ -478,35 +732,221 @@ impl PyWorld {
     /// `stress` (Cauchy; n×D×D), `contact_force` (n×D, the last step's), `body` (n, an index
     /// into `body_names`).
     fn particles<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
-        with_world!(&self.world, w => Self::particles_d(py, w))
+        let s = self.st();
+        with_world!(&s.world, w => Self::particles_d(py, w))
     }
 
     /// One FEM body: `x`, `v`, `rest` (mesh vertices), `initial` (after the scene's transform),
     /// `mass` (lumped), `elements` (cells × (D+1) vertex indices), `facets` (boundary facets ×
     /// D), `stress` (Cauchy per element), `contact_force` (per vertex, the last step's).
     fn fem<'py>(&self, py: Python<'py>, name: &str) -> PyResult<Bound<'py, PyDict>> {
-        with_world!(&self.world, w => Self::fem_d(py, w, name))
+        let s = self.st();
+        with_world!(&s.world, w => Self::fem_d(py, w, name))
     }
 
     /// The current metrics as a dict keyed by `metrics.csv`'s columns: energies, momenta, and
     /// the last step's solver columns and per-body contact forces (`wall_s` is 0 here).
     fn metrics<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
-        let last = self.last.as_ref();
-        with_world!(&self.world, w => Self::metrics_d(py, w, last))
+        let s = self.st();
+        let last = s.last.as_ref();
+        with_world!(&s.world, w => Self::metrics_d(py, w, last))
     }
 
     /// Warnings about what the scene asks for and femp does not fully model.
     fn warnings(&self) -> Vec<String> {
-        with_world!(&self.world, w => w.warnings())
+        let s = self.st();
+        with_world!(&s.world, w => w.warnings())
+    }
+
+    /// Set the particles' positions `x` and/or velocities `v` (n×D, every particle). Refused
+    /// (`StateError`, the World unchanged) for a wrong shape, a non-finite value, or a particle
+    /// put into or onto a FEM body.
+    #[pyo3(signature = (x = None, v = None))]
+    fn set_particles(
+        &mut self,
+        x: Option<PyReadonlyArray2<'_, f64>>,
+        v: Option<PyReadonlyArray2<'_, f64>>,
+    ) -> PyResult<()> {
+        let mut s = self.st();
+        with_world!(&mut s.world, w => set_particles_d(w, x.as_ref(), v.as_ref()))
+    }
+
+    /// Set FEM body `name`'s vertex positions `x` and/or velocities `v` (vertices×D). Refused
+    /// for a wrong shape, a non-finite value, an inverted element, the body put into or onto
+    /// another, or a change to a vertex the scene prescribes.
+    #[pyo3(signature = (name, x = None, v = None))]
+    fn set_fem(
+        &mut self,
+        name: &str,
+        x: Option<PyReadonlyArray2<'_, f64>>,
+        v: Option<PyReadonlyArray2<'_, f64>>,
+    ) -> PyResult<()> {
+        let mut s = self.st();
+        with_world!(&mut s.world, w => set_fem_d(w, name, x.as_ref(), v.as_ref()))
+    }
+
+    /// The force on each particle (n×D, N; N/m in 2D) during the next step.
+    fn apply_particle_forces(&mut self, f: PyReadonlyArray2<'_, f64>) -> PyResult<()> {
+        let mut s = self.st();
+        with_world!(&mut s.world, w => {
+            let f = rows(&f, "particles.force")?;
+            w.apply_particle_forces(&f).map_err(py_err)
+        })
+    }
+
+    /// The force on each vertex of FEM body `name` (vertices×D) during the next step.
+    fn apply_fem_forces(&mut self, name: &str, f: PyReadonlyArray2<'_, f64>) -> PyResult<()> {
+        let mut s = self.st();
+        with_world!(&mut s.world, w => {
+            let f = rows(&f, &format!("fem[{name}].force"))?;
+            w.apply_fem_forces(name, &f).map_err(py_err)
+        })
+    }
+
+    /// Move `vertices` of FEM body `name` to `positions` (len(vertices)×D) by the end of the
+    /// next step, each on a straight line.
+    fn prescribe(
+        &mut self,
+        name: &str,
+        vertices: Vec<usize>,
+        positions: PyReadonlyArray2<'_, f64>,
+    ) -> PyResult<()> {
+        let mut s = self.st();
+        with_world!(&mut s.world, w => {
+            let p = rows(&positions, &format!("fem[{name}].prescribe"))?;
+            w.prescribe(name, &vertices, &p).map_err(py_err)
+        })
+    }
+
+    /// Set the friction coefficient of every contact pair, or of the pairs between the two
+    /// bodies `between`; the number of pairs changed.
+    #[pyo3(signature = (mu, between = None))]
+    fn set_friction(&mut self, mu: f64, between: Option<(String, String)>) -> PyResult<usize> {
+        let mut s = self.st();
+        let between = between.as_ref().map(|(a, b)| (a.as_str(), b.as_str()));
+        with_world!(&mut s.world, w => w.set_friction(mu, between).map_err(py_err))
+    }
+
+    /// Set Young's modulus `E` and Poisson's ratio `nu` of body `name` (MPM or FEM; BFEMP) from
+    /// the next step on.
+    #[pyo3(signature = (name, E, nu))]
+    #[allow(non_snake_case)]
+    fn set_material(&mut self, name: &str, E: f64, nu: f64) -> PyResult<()> {
+        let mut s = self.st();
+        with_world!(&mut s.world, w => w.set_material(name, E, nu).map_err(py_err))
+    }
+
+    /// Start recording into `out` what `femp run` writes: the scene's copy, summary.json, the
+    /// initial metrics row and frame now, then every step's row and frames at the scene's frame
+    /// interval (`frames=False`: none), pictures with `pictures=True`.
+    #[pyo3(signature = (out, frames = true, overwrite = false, metrics_every = 1, pictures = false))]
+    fn record(
+        &mut self,
+        py: Python<'_>,
+        out: PathBuf,
+        frames: bool,
+        overwrite: bool,
+        metrics_every: usize,
+        pictures: bool,
+    ) -> PyResult<()> {
+        let mut s = self.st();
+        if s.recorder.is_some() {
+            return Err(PyValueError::new_err(
+                "World.record: already recording; stop_recording() first",
+            ));
+        }
+        if metrics_every == 0 {
+            return Err(PyValueError::new_err(
+                "World.record: metrics_every must be at least 1 (a metrics row every N steps)",
+            ));
+        }
+        let opts = RunOptions {
+            no_frames: !frames,
+            overwrite,
+            metrics_every,
+            pictures: pictures.then(femp::render::PictureOptions::default),
+            command: vec!["python: femp.World.record".into()],
+            ..Default::default()
+        };
+        let world = &s.world;
+        let rec = py
+            .detach(|| with_world!(world, w => femp::run::Recorder::start(w, &out, &opts)))
+            .map_err(py_err)?;
+        s.recorder = Some(rec);
+        Ok(())
+    }
+
+    /// Write a frame of the World as it is now into the recording.
+    fn write_frame(&mut self) -> PyResult<()> {
+        let mut s = self.st();
+        let WorldState {
+            world, recorder, ..
+        } = &mut *s;
+        let Some(rec) = recorder.as_mut() else {
+            return Err(PyValueError::new_err(
+                "World.write_frame: not recording: call record(out) first",
+            ));
+        };
+        with_world!(world, w => rec.write_frame(w)).map_err(py_err)
+    }
+
+    /// End the recording: summary.json `completed`, or with `error` (what stopped the Python
+    /// code driving the World) `failed` (`interrupted`) with it. `(summary_json, columns,
+    /// rows)` as `run` returns them.
+    #[pyo3(signature = (error = None, interrupted = false))]
+    fn stop_recording(
+        &mut self,
+        py: Python<'_>,
+        error: Option<String>,
+        interrupted: bool,
+    ) -> PyResult<(String, Vec<String>, Vec<Vec<f64>>)> {
+        let mut s = self.st();
+        let Some(rec) = s.recorder.take() else {
+            return Err(PyValueError::new_err("World.stop_recording: not recording"));
+        };
+        let world = &s.world;
+        let (step, time) = with_world!(world, w => (w.clock.step, w.clock.time));
+        let r = py.detach(|| {
+            with_world!(world, w => match error {
+                None if !interrupted => rec.finish(w),
+                None => Err(rec.fail(w, SimError::Interrupted { step, time })),
+                Some(_) if interrupted => Err(rec.fail(w, SimError::Interrupted { step, time })),
+                Some(message) => Err(rec.fail(w, SimError::Stopped { step, time, message })),
+            })
+        });
+        let r = match r {
+            Ok(r) => r,
+            // The recording ended as the caller said: what it wrote is on disk.
+            Err(SimError::Stopped { .. } | SimError::Interrupted { .. }) => {
+                return Ok((String::new(), Vec::new(), Vec::new()));
+            }
+            Err(e) => return Err(py_err(e)),
+        };
+        let summary = serde_json::to_string(&r.summary)
+            .map_err(|e| SimulationError::new_err(format!("summary: {e}")))?;
+        let names: Vec<&str> = r.force_bodies.iter().map(String::as_str).collect();
+        let (header, rows) = match s.world {
+            AnyWorld::D2(_) => table::<2>(&names, &r),
+            AnyWorld::D3(_) => table::<3>(&names, &r),
+        };
+        Ok((summary, header, rows))
+    }
+
+    /// Whether a recording is in progress.
+    #[getter]
+    fn recording(&self) -> bool {
+        let s = self.st();
+        s.recorder.is_some()
     }
 
     fn __repr__(&self) -> String {
-        format!(
-            "femp.World(dimension={}, steps={}, time={:.6e})",
-            self.dimension(),
-            self.steps(),
-            self.time()
-        )
+        let dimension = self.dimension();
+        let s = self.st();
+        with_world!(&s.world, w => format!(
+            "femp.World(dimension={dimension}, steps={}, time={:.6e})",
+            w.clock.step,
+            w.clock.time
+        ))
     }
 }
 
@@ -979,6 +1419,7 @@ fn _femp(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("SceneError", py.get_type::<SceneError>())?;
     m.add("SimulationError", py.get_type::<SimulationError>())?;
     m.add("OutputError", py.get_type::<OutputError>())?;
+    m.add("StateError", py.get_type::<StateError>())?;
     m.add_class::<PyScene>()?;
     m.add_class::<PyWorld>()?;
     m.add_class::<PyTransfer>()?;

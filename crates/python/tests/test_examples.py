@@ -3,6 +3,7 @@ its own comparison — against the run's metrics, finite differences, the plate'
 holds)."""
 
 import contact_on_a_mesh
+import control_loop
 import read_frames
 
 
@@ -16,3 +17,11 @@ def test_read_frames_follows_the_metrics_and_the_free_fall(tmp_path, capsys):
 def test_contact_on_a_mesh_matches_finite_differences_and_stops_at_the_plate(capsys):
     assert contact_on_a_mesh.main([]) == 0
     assert "stops at t = 0.49" in capsys.readouterr().out
+
+
+def test_control_loop_brings_the_block_to_its_goal_and_records_it(tmp_path, capsys):
+    out = tmp_path / "control"
+    assert control_loop.main(["--out", str(out), "--pictures"]) == 0
+    assert "particles inside a body: 0" in capsys.readouterr().out
+    assert (out / "pictures" / "animation.gif").read_bytes()[:6] == b"GIF89a"
+    assert (out / "frames").is_dir() and (out / "particles.pvd").exists()

@@ -14,6 +14,11 @@ a JSON string or a dict, and edit as dicts::
     world = femp.World(scene)                            # or step it yourself
     world.step(10)
     world.particles()["x"]                               # (n, D) numpy array
+    world.set_particles(v=np.zeros_like(world.particles()["v"]))   # and steer it
+    world.apply_forces(particles=f)                      # (n, D) N, during the next step
+    world.prescribe("pusher", vertices, positions)       # FEM vertices at the step's end
+    with world.record("out/steered"):                    # the files `femp run` writes
+        world.step(5)
 
 Single contacts, the barrier, CCD and APIC transfers: ``femp.contact`` and ``femp.transfer``.
 Errors: ``femp.SceneError`` (bad scene; a ``ValueError`` too), ``femp.SimulationError`` (a run
@@ -26,9 +31,10 @@ from __future__ import annotations
 import json
 import os
 from dataclasses import dataclass, field
-from typing import Any, Dict, List, Optional, Union
+from typing import Any, Dict, List, Optional, Tuple, Union
 
 import numpy as np
+import numpy.typing as npt
 
 from . import _femp
 from ._femp import FempError, OutputError, SimulationError, __version__
@@ -46,6 +52,8 @@ __all__ = [
     "SceneError",
     "SimulationError",
     "OutputError",
+    "StateError",
+    "Recording",
     "__version__",
 ]
 
@@ -54,10 +62,33 @@ class SceneError(_femp.SceneError, ValueError):
     """A malformed, non-physical or too large scene; the message names the field."""
 
 
+class StateError(_femp.StateError, ValueError):
+    """A state, force, target or parameter a :class:`World` refuses (a wrong shape, a
+    non-finite value, a body put into another, an inverted element, a vertex the scene moves);
+    the message names what and why, and the World is unchanged."""
+
+
 def _scene_error(e: _femp.SceneError) -> SceneError:
     err = SceneError(*e.args)
     err.__cause__ = e
     return err
+
+
+def _state_error(e: _femp.StateError) -> StateError:
+    err = StateError(*e.args)
+    err.__cause__ = e
+    return err
+
+
+def _rows(a: Any, what: str) -> np.ndarray:
+    """``a`` as a C-contiguous 2-D float array, or a :class:`StateError` naming ``what``."""
+    try:
+        r = np.ascontiguousarray(a, dtype=float)
+    except (TypeError, ValueError) as e:
+        raise StateError(f"{what}: not an array of numbers: {e}") from None
+    if r.ndim != 2:
+        raise StateError(f"{what}: {r.ndim}-D array of shape {r.shape}, expected (rows, D)")
+    return r
 
 
 class Scene:
@@ -184,9 +215,11 @@ def _set_path(d: Any, path: str, value: Any) -> None:
 
 class World:
     """A simulation state stepped from Python: build it from a :class:`Scene`, :meth:`step` it,
-    read its state as numpy arrays (copies) and its metrics."""
+    read its state as numpy arrays (copies) and its metrics; steer it between steps (set
+    positions and velocities, apply forces, prescribe FEM vertices, change friction) and record
+    it as ``femp run`` does."""
 
-    __slots__ = ("_inner",)
+    __slots__ = ("_inner", "_recording_out")
 
     def __init__(self, scene: Scene):
         if not isinstance(scene, Scene):
@@ -195,6 +228,7 @@ class World:
             self._inner = _femp.World(scene._inner)
         except _femp.SceneError as e:
             raise _scene_error(e) from None
+        self._recording_out = ""
 
     def step(self, n: int = 1) -> Dict[str, Any]:
         """Advance ``n`` steps; the last step's solver report (``newton_iterations``,
@@ -254,6 +288,138 @@ class World:
         """What the scene asks for and femp does not fully model."""
         return self._inner.warnings()
 
+    # -- steering: state, forces and targets set between steps -------------------------------
+
+    def set_particles(self, x: Optional[npt.ArrayLike] = None,
+                      v: Optional[npt.ArrayLike] = None) -> None:
+        """Set every particle's position ``x`` and/or velocity ``v`` (n × D, in
+        ``particles()`` order). Deformation gradients and ``B`` are kept. :class:`StateError`
+        (nothing changed) for a wrong shape, a NaN, or a particle put into or onto a FEM
+        body."""
+        try:
+            self._inner.set_particles(None if x is None else _rows(x, "particles.x"),
+                                      None if v is None else _rows(v, "particles.v"))
+        except _femp.StateError as e:
+            raise _state_error(e) from None
+
+    def set_fem(self, name: str, x: Optional[npt.ArrayLike] = None,
+                v: Optional[npt.ArrayLike] = None) -> None:
+        """Set FEM body ``name``'s vertex positions ``x`` and/or velocities ``v`` (vertices ×
+        D). :class:`StateError` (nothing changed) for a wrong shape, a NaN, an inverted element,
+        the body put into or onto another, or a change to a vertex the scene prescribes."""
+        try:
+            self._inner.set_fem(name, None if x is None else _rows(x, f"fem[{name}].x"),
+                                None if v is None else _rows(v, f"fem[{name}].v"))
+        except _femp.StateError as e:
+            raise _state_error(e) from None
+
+    def apply_forces(self, particles: Optional[npt.ArrayLike] = None,
+                     fem: Optional[Dict[str, npt.ArrayLike]] = None) -> None:
+        """External forces during the next step only (set them again before every step of a
+        control loop): ``particles`` (n × D) on the MPM particles, ``fem`` a dict of FEM body
+        name → (vertices × D) forces. In N (N/m in 2D); held constant over the step. In BFEMP
+        a force enters the incremental potential as gravity does; in augury, the accelerations
+        at the step's end."""
+        try:
+            if particles is not None:
+                self._inner.apply_particle_forces(_rows(particles, "particles.force"))
+            for name, f in (fem or {}).items():
+                self._inner.apply_fem_forces(name, _rows(f, f"fem[{name}].force"))
+        except _femp.StateError as e:
+            raise _state_error(e) from None
+
+    def apply_impulses(self, particles: Optional[npt.ArrayLike] = None,
+                       fem: Optional[Dict[str, npt.ArrayLike]] = None) -> None:
+        """Impulses now (N s): each particle's or vertex's velocity changes by impulse / mass.
+        A vertex the scene prescribes takes none (a non-zero one is a :class:`StateError`)."""
+        if particles is not None:
+            p = self.particles()
+            j = _rows(particles, "particles.impulse")
+            if j.shape != p["v"].shape:
+                raise StateError(f"particles.impulse: shape {j.shape}, expected {p['v'].shape}")
+            self.set_particles(v=p["v"] + j / p["mass"][:, None])
+        for name, jf in (fem or {}).items():
+            b = self.fem(name)
+            j = _rows(jf, f"fem[{name}].impulse")
+            if j.shape != b["v"].shape:
+                raise StateError(f"fem[{name}].impulse: shape {j.shape}, expected {b['v'].shape}")
+            self.set_fem(name, v=b["v"] + j / b["mass"][:, None])
+
+    def prescribe(self, name: str, vertices: npt.ArrayLike, positions: npt.ArrayLike) -> None:
+        """Move ``vertices`` (indices) of FEM body ``name`` to ``positions`` (len(vertices) ×
+        D) by the end of the next step, each on a straight line from where it is: Dirichlet
+        unknowns of that step, as the scene's ``prescribed`` sets are (BFEMP's barrier still
+        keeps every particle out). Set them before every step you drive them in."""
+        idx = np.asarray(vertices)
+        if idx.ndim != 1 or (idx.size and not np.issubdtype(idx.dtype, np.integer)):
+            raise StateError(f"fem[{name}].prescribe: vertices must be a 1-D array of indices")
+        if idx.size and idx.min() < 0:
+            raise StateError(f"fem[{name}].prescribe: negative vertex index {int(idx.min())}")
+        pos = _rows(positions, f"fem[{name}].prescribe: positions")
+        if pos.shape != (idx.size, self.dimension):
+            raise StateError(f"fem[{name}].prescribe: positions: shape {pos.shape}, expected "
+                             f"({idx.size}, {self.dimension})")
+        try:
+            self._inner.prescribe(name, [int(i) for i in idx], pos)
+        except _femp.StateError as e:
+            raise _state_error(e) from None
+
+    def set_friction(self, mu: float, between: Optional[Tuple[str, str]] = None) -> int:
+        """Set the friction coefficient of every contact pair, or of the pairs between the two
+        bodies ``between``, from the next step on (BFEMP); returns how many pairs changed."""
+        try:
+            return self._inner.set_friction(float(mu), between)
+        except _femp.StateError as e:
+            raise _state_error(e) from None
+
+    def set_material(self, name: str, E: float, nu: float) -> None:
+        """Set Young's modulus ``E`` (Pa) and Poisson's ratio ``nu`` of body ``name`` (MPM or
+        FEM; its model and density kept) from the next step on (BFEMP)."""
+        try:
+            self._inner.set_material(name, float(E), float(nu))
+        except _femp.StateError as e:
+            raise _state_error(e) from None
+
+    # -- recording ------------------------------------------------------------------------
+
+    def record(self, out: Union[str, os.PathLike], *, frames: bool = True,
+               overwrite: bool = False, metrics_every: int = 1,
+               pictures: bool = False) -> "Recording":
+        """Record the steps that follow into the directory ``out`` as ``femp run`` would: the
+        scene's copy, summary.json (kept current), the metrics row and frame of the state now,
+        then every step's row and a frame at the scene's frame interval; key-frame PNGs and a
+        GIF with ``pictures=True``. The same files as ``femp.run`` for the same steps. End it
+        with :meth:`stop_recording` or use the returned :class:`Recording` in a ``with``
+        block. A step that fails ends the recording (summary.json says why)."""
+        if not os.fspath(out):
+            raise ValueError("World.record: out is empty: name the output directory")
+        self._inner.record(os.fspath(out), frames, overwrite, metrics_every, pictures)
+        return Recording(self, os.fspath(out))
+
+    @property
+    def recording(self) -> bool:
+        """Whether a recording is in progress."""
+        return self._inner.recording
+
+    def write_frame(self) -> None:
+        """Write a frame of the World as it is now into the recording (outside the scene's
+        frame interval)."""
+        self._inner.write_frame()
+
+    def stop_recording(self, error: Optional[BaseException] = None) -> "RunResult":
+        """End the recording and return what it wrote: summary.json ``completed``, or with
+        ``error`` (what stopped the Python loop driving the World) ``failed`` — ``interrupted``
+        for a ``KeyboardInterrupt`` — and the error's text."""
+        out = self._recording_out
+        why = None if error is None else f"{type(error).__name__}: {error}"
+        interrupted = isinstance(error, KeyboardInterrupt)
+        summary, columns, rows = self._inner.stop_recording(why, interrupted)
+        if not summary:
+            # Ended by the error: what the recording wrote is on disk.
+            with open(os.path.join(out, "summary.json"), encoding="utf-8") as f:
+                return RunResult(out, json.load(f), read_metrics(out))
+        return _result(out, summary, columns, rows)
+
     def __repr__(self) -> str:
         return repr(self._inner)
 
@@ -296,9 +462,38 @@ def run(
         )
     except _femp.SceneError as e:
         raise _scene_error(e) from None
+    return _result(os.fspath(out), summary, columns, rows)
+
+
+def _result(out: str, summary: str, columns: List[str], rows: List[List[float]]) -> RunResult:
     table = np.array(rows, dtype=float).reshape(len(rows), len(columns))
     metrics = {c: table[:, i] for i, c in enumerate(columns)}
-    return RunResult(os.fspath(out), json.loads(summary), metrics)
+    return RunResult(out, json.loads(summary), metrics)
+
+
+class Recording:
+    """A recording in progress (:meth:`World.record`). In a ``with`` block it stops when the
+    block ends; ``result`` is then what it wrote (a :class:`RunResult`)."""
+
+    __slots__ = ("world", "out", "result")
+
+    def __init__(self, world: World, out: str):
+        self.world = world
+        self.out = out
+        self.result: Optional[RunResult] = None
+        world._recording_out = out
+
+    def __enter__(self) -> "Recording":
+        return self
+
+    def __exit__(self, kind: Any, value: Any, tb: Any) -> None:
+        # A step that failed has ended the recording already (summary.json says why); an
+        # exception of the loop itself ends it as failed (interrupted for Ctrl-C).
+        if self.world.recording:
+            self.result = self.world.stop_recording(value)
+
+    def __repr__(self) -> str:
+        return f"femp.Recording(out={self.out!r}, active={self.world.recording})"
 
 
 def read_metrics(path: Union[str, os.PathLike]) -> Dict[str, np.ndarray]:
