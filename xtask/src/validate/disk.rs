@@ -94,10 +94,9 @@ fn explicit_scene(
     spec.augury = Some(augury.clone());
     let disk = FemBody::new(
         "disk",
-        MeshSpec::File {
-            path: format!("../meshes/disk_{s}.msh"),
-            reorient: false,
-        },
+        MeshSpec::File(femp::scene::MeshFile::new(format!(
+            "../meshes/disk_{s}.msh"
+        ))),
         material(),
     );
     spec.bodies = bodies(

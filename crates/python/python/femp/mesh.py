@@ -1,6 +1,7 @@
 """Meshes for femp from surfaces: a closed triangulated surface (.stl or .obj) tetrahedralised,
 or a closed 2D outline triangulated, by Gmsh (the ``gmsh`` package on PyPI), written as a Gmsh
-``.msh`` file that a scene's ``{"mesh": {"file": …}}`` reads.
+``.msh`` file that a scene's ``{"file": {"path": …}}`` reads (a FEM body's ``"mesh"`` or an MPM
+body's ``"shape"``).
 
     python -m femp.mesh bunny.stl bunny.msh --size 0.01      # 3D: tetrahedra inside the surface
     python -m femp.mesh outline.obj plate.msh --2d --size 0.05   # 2D: a planar OBJ polygon/polyline

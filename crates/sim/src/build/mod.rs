@@ -147,15 +147,16 @@ pub fn sample_shape<const D: usize>(
                 d >= a && d <= b && p[1] >= c[1]
             });
         }
-        ShapeSpec::Mesh { file, reorient } => {
+        ShapeSpec::Mesh(never) => match *never {},
+        ShapeSpec::File(f) => {
             let mesh: Mesh<D> = gmsh::read_msh_with(
-                &base_dir.join(file),
+                &base_dir.join(&f.path),
                 gmsh::ReadOptions {
-                    reorient: *reorient,
+                    reorient: f.reorient,
                 },
             )
             .map_err(|e| SimError::Build {
-                context: format!("{field}.file"),
+                context: format!("{field}.file.path"),
                 message: e.to_string(),
             })?;
             let (lo, hi) = mesh.bounding_box();
@@ -164,7 +165,7 @@ pub fn sample_shape<const D: usize>(
                 return Err(SimError::Invalid {
                     field: "mpm.grid_spacing".into(),
                     message: format!(
-                        "{h} is coarser than the mesh of {field}.file is thick ({thinnest}): the \
+                        "{h} is coarser than the mesh of {field}.file.path is thick ({thinnest}): the \
                          grid must resolve every MPM body with at least one cell across"
                     ),
                 });

@@ -98,10 +98,10 @@ pub fn fem_mesh<const D: usize>(
                 cells[1],
             ))
         }
-        MeshSpec::File { path, reorient } => gmsh::read_msh_with::<D>(
-            &base_dir.join(path),
+        MeshSpec::File(f) => gmsh::read_msh_with::<D>(
+            &base_dir.join(&f.path),
             gmsh::ReadOptions {
-                reorient: *reorient,
+                reorient: f.reorient,
             },
         )
         .map_err(err),

@@ -147,6 +147,7 @@ pub fn parse(
         message: format!("text after the scene object ({e})"),
     })?;
     let resolved = resolve(&spec)?;
+    check_mesh_files(&spec, &base_dir)?;
     let name = spec
         .name
         .clone()
@@ -159,6 +160,105 @@ pub fn parse(
         limits: size::Limits::default(),
         source: Some(text.to_string()),
     })
+}
+
+/// A mesh file's reference (field path `field`): a path naming a file.
+fn mesh_file(field: &str, file: &MeshFile) -> Result<(), SimError> {
+    if file.path.is_empty() {
+        return Err(invalid(format!("{field}.path"), "must name a mesh file"));
+    }
+    Ok(())
+}
+
+/// Surface and other mesh formats femp does not read, by file extension.
+const NOT_MSH: [&str; 8] = ["stl", "obj", "ply", "off", "vtk", "vtu", "inp", "mesh"];
+
+/// Every mesh file a scene names exists and is a Gmsh `.msh` file (by its first line), checked
+/// when the scene is read rather than when its world is built; a surface mesh (`.stl`, `.obj`,
+/// …) is named with the command that fills it.
+fn check_mesh_files(spec: &SceneSpec, base_dir: &Path) -> Result<(), SimError> {
+    for (i, body) in spec.bodies.iter().enumerate() {
+        let (field, file) = match body {
+            BodySpec::Mpm(b) => match &b.shape {
+                ShapeSpec::File(f) => (format!("bodies[{i}].shape.file.path"), f),
+                _ => continue,
+            },
+            BodySpec::Fem(b) => match &b.mesh {
+                MeshSpec::File(f) => (format!("bodies[{i}].mesh.file.path"), f),
+                _ => continue,
+            },
+        };
+        let path = base_dir.join(&file.path);
+        let fill = |what: &str| {
+            let stem = Path::new(&file.path).with_extension("msh");
+            format!(
+                "{what}: femp reads Gmsh .msh meshes of triangles (2D) or tetrahedra (3D); fill a \
+                 closed surface with `python -m femp.mesh {} {} [--size h]` (or an outline with \
+                 `--2d`; docs/scenes.md) and name the .msh here",
+                file.path,
+                stem.display()
+            )
+        };
+        let ext = path
+            .extension()
+            .and_then(|e| e.to_str())
+            .map(str::to_ascii_lowercase)
+            .unwrap_or_default();
+        if NOT_MSH.contains(&ext.as_str()) {
+            return Err(invalid(
+                field,
+                fill(&format!("`{}` is a .{ext} file", file.path)),
+            ));
+        }
+        // Only a regular file is opened (a FIFO would block the open, a device never end).
+        match std::fs::metadata(&path) {
+            Ok(m) if m.is_file() => {}
+            Ok(_) => {
+                return Err(invalid(
+                    field,
+                    format!("{}: not a regular file", path.display()),
+                ));
+            }
+            Err(e) => {
+                return Err(invalid(
+                    field,
+                    format!(
+                        "{}: {e} (relative paths start at the scene's directory)",
+                        path.display()
+                    ),
+                ));
+            }
+        }
+        let first = match std::fs::File::open(&path) {
+            Ok(f) => {
+                let mut line = String::new();
+                let _ = std::io::BufRead::read_line(
+                    &mut std::io::BufReader::new(std::io::Read::take(f, 256)),
+                    &mut line,
+                );
+                line
+            }
+            Err(e) => {
+                return Err(invalid(
+                    field,
+                    format!(
+                        "{}: {e} (relative paths start at the scene's directory)",
+                        path.display()
+                    ),
+                ));
+            }
+        };
+        if !first.trim_start().starts_with("$MeshFormat") {
+            return Err(invalid(
+                field,
+                fill(&format!(
+                    "`{}` is not a Gmsh .msh file (it does not start with $MeshFormat)",
+                    file.path
+                )),
+            ));
+        }
+    }
+    Ok(())
 }
 
 fn vec_len(field: &str, v: &[f64], d: usize) -> Result<(), SimError> {
@@ -421,7 +521,8 @@ fn thinnest(shape: &ShapeSpec) -> Option<f64> {
         ShapeSpec::Ring { r_in, r_out, .. } | ShapeSpec::SemicircularRing { r_in, r_out, .. } => {
             Some(r_out - r_in)
         }
-        ShapeSpec::Mesh { .. } => None,
+        ShapeSpec::File(_) => None,
+        ShapeSpec::Mesh(never) => match *never {},
     }
 }
 
@@ -506,11 +607,8 @@ fn mpm_body(f: &str, body: &MpmBody, d: usize) -> Result<Material, SimError> {
             vec_len(&format!("{sf}.center"), center, d)?;
             radii(&sf, *r_in, *r_out)?;
         }
-        ShapeSpec::Mesh { file, .. } => {
-            if file.is_empty() {
-                return Err(invalid(format!("{sf}.file"), "must name a mesh file"));
-            }
-        }
+        ShapeSpec::File(file) => mesh_file(&format!("{sf}.file"), file)?,
+        ShapeSpec::Mesh(never) => match *never {},
     }
     Ok(material)
 }
@@ -602,11 +700,7 @@ fn fem_body(f: &str, body: &FemBody, d: usize) -> Result<Material, SimError> {
             }
             cells(&format!("{mf}.cells"), c, 2)?;
         }
-        MeshSpec::File { path, .. } => {
-            if path.is_empty() {
-                return Err(invalid(format!("{mf}.path"), "must name a mesh file"));
-            }
-        }
+        MeshSpec::File(file) => mesh_file(&format!("{mf}.file"), file)?,
     }
     for (k, p) in prescribed.iter().enumerate() {
         let pf = format!("{f}.prescribed[{k}]");

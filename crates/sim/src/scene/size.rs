@@ -240,10 +240,11 @@ fn mpm_counts(
             let surf = pi * (r_in + r_out) + 2.0 * (r_out - r_in);
             (vol / (s * s), around(vol, surf))
         }
-        ShapeSpec::Mesh { file, reorient } => {
+        ShapeSpec::Mesh(never) => match *never {},
+        ShapeSpec::File(f) => {
             let (vol, lo, hi) = match d {
-                2 => mesh_extent::<2>(base_dir, file, *reorient, field)?,
-                _ => mesh_extent::<3>(base_dir, file, *reorient, field)?,
+                2 => mesh_extent::<2>(base_dir, &f.path, f.reorient, field)?,
+                _ => mesh_extent::<3>(base_dir, &f.path, f.reorient, field)?,
             };
             let nodes = lo.iter().zip(&hi).map(|(a, b)| (b - a) / h + 3.0).product();
             (vol / s.powi(df), nodes)
@@ -305,7 +306,7 @@ fn fem_counts(
             let n = c(cells);
             ((n[0] + 1.0) * (n[1] + 1.0), 2.0 * n[0] * n[1])
         }
-        MeshSpec::File { .. } => {
+        MeshSpec::File(_) => {
             let counts = |v: usize, e: usize| (v as f64, e as f64);
             match d {
                 2 => {
@@ -325,7 +326,7 @@ fn fem_counts(
 fn mesh_field(mesh: &MeshSpec) -> &'static str {
     match mesh {
         MeshSpec::Disk { .. } => "mesh.disk.rings",
-        MeshSpec::File { .. } => "mesh.file.path",
+        MeshSpec::File(_) => "mesh.file.path",
         MeshSpec::Rectangle { .. } => "mesh.rectangle.cells",
         MeshSpec::Cuboid { .. } => "mesh.cuboid.cells",
         MeshSpec::Ring { .. } => "mesh.ring.cells",

@@ -592,15 +592,86 @@ pub enum ShapeSpec {
         /// Outer radius.
         r_out: f64,
     },
-    /// The inside of a mesh file's cells.
-    Mesh {
-        /// Gmsh file.
-        file: String,
-        /// Flip every cell of a mesh whose cells are all inverted (else such a file is an
-        /// error; a mesh of mixed orientation is an error either way).
-        #[serde(default, skip_serializing_if = "is_false")]
-        reorient: bool,
-    },
+    /// The inside of a mesh file's cells: `{ "file": { "path": "body.msh" } }` (or
+    /// `{ "file": "body.msh" }`), as a FEM body's mesh file.
+    File(MeshFile),
+    /// The spelling of a mesh-file shape before it was the same as a FEM body's: never read
+    /// (its deserialiser refuses it with the spelling to use).
+    Mesh(OldMeshShape),
+}
+
+/// `{ "mesh": { "file": … } }`, the old spelling of an MPM body's mesh-file shape: no value
+/// has this type; reading one is the error that names the spelling to use.
+#[derive(Debug, Clone)]
+pub enum OldMeshShape {}
+
+impl Serialize for OldMeshShape {
+    fn serialize<S: serde::Serializer>(&self, _: S) -> Result<S::Ok, S::Error> {
+        match *self {}
+    }
+}
+
+impl<'de> Deserialize<'de> for OldMeshShape {
+    fn deserialize<D: serde::Deserializer<'de>>(de: D) -> Result<Self, D::Error> {
+        let v = serde_json::Value::deserialize(de)?;
+        let path = v.get("file").and_then(|f| f.as_str()).unwrap_or("body.msh");
+        Err(serde::de::Error::custom(format!(
+            "the old spelling of a mesh file: write `\"shape\": {{ \"file\": {{ \"path\": \
+             \"{path}\" }} }}` (or `{{ \"file\": \"{path}\" }}`), as a FEM body's `\"mesh\"`"
+        )))
+    }
+}
+
+/// A Gmsh `.msh` file (path relative to the scene file), for an MPM body's shape or a FEM body's
+/// mesh alike: `{ "path": "body.msh", "reorient": true }`, or just `"body.msh"`.
+#[derive(Debug, Clone, PartialEq, Eq, Serialize)]
+pub struct MeshFile {
+    /// Path.
+    pub path: String,
+    /// Flip every cell of a mesh whose cells are all inverted (else such a file is an error; a
+    /// mesh of mixed orientation is an error either way).
+    #[serde(default, skip_serializing_if = "is_false")]
+    pub reorient: bool,
+}
+
+impl MeshFile {
+    /// The file `path`, its cells as they are.
+    pub fn new(path: impl Into<String>) -> Self {
+        Self {
+            path: path.into(),
+            reorient: false,
+        }
+    }
+}
+
+impl<'de> Deserialize<'de> for MeshFile {
+    fn deserialize<D: serde::Deserializer<'de>>(de: D) -> Result<Self, D::Error> {
+        #[derive(Deserialize)]
+        #[serde(deny_unknown_fields)]
+        struct Full {
+            path: String,
+            #[serde(default)]
+            reorient: bool,
+        }
+        struct V;
+        impl<'de> serde::de::Visitor<'de> for V {
+            type Value = MeshFile;
+            fn expecting(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
+                f.write_str("a mesh file: { \"path\": \"body.msh\" } or \"body.msh\"")
+            }
+            fn visit_str<E: serde::de::Error>(self, s: &str) -> Result<MeshFile, E> {
+                Ok(MeshFile::new(s))
+            }
+            fn visit_map<A: serde::de::MapAccess<'de>>(self, m: A) -> Result<MeshFile, A::Error> {
+                let f = Full::deserialize(serde::de::value::MapAccessDeserializer::new(m))?;
+                Ok(MeshFile {
+                    path: f.path,
+                    reorient: f.reorient,
+                })
+            }
+        }
+        de.deserialize_any(V)
+    }
 }
 
 /// Particle placement in round shapes.
@@ -687,15 +758,9 @@ pub enum MeshSpec {
         /// Cells along and across.
         cells: Vec<usize>,
     },
-    /// A Gmsh `.msh` file (path relative to the scene file).
-    File {
-        /// Path.
-        path: String,
-        /// Flip every cell of a mesh whose cells are all inverted (else such a file is an
-        /// error; a mesh of mixed orientation is an error either way).
-        #[serde(default, skip_serializing_if = "is_false")]
-        reorient: bool,
-    },
+    /// A Gmsh `.msh` file (path relative to the scene file): `{ "file": { "path": "body.msh" } }`
+    /// or `{ "file": "body.msh" }`, as an MPM body's mesh-file shape.
+    File(MeshFile),
 }
 
 /// Vertices with prescribed motion.

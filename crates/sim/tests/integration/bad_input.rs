@@ -258,6 +258,73 @@ fn missing_and_malformed_mesh_files_are_named() {
     );
 }
 
+/// One spelling of a mesh file for both body kinds — `{ "file": { "path": … } }` or
+/// `{ "file": "…" }` — and the old MPM spelling refused with the one to use; a missing file, a
+/// surface mesh or a file that is not Gmsh's refused when the scene is read (not when its world
+/// is built), a surface mesh with the command that fills it.
+#[test]
+fn mesh_files_have_one_spelling_and_are_checked_when_the_scene_is_read() {
+    let dir = tempfile::tempdir().unwrap();
+    let msh = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../fixtures/meshes/disk_0.02.msh");
+    std::fs::copy(&msh, dir.path().join("d.msh")).unwrap();
+    let parse = |v: &Value| {
+        scene::parse(&v.to_string(), "s.json", dir.path().to_path_buf(), "s").map(|_| ())
+    };
+    let mut v = base();
+    v["bodies"][0]["shape"] = json!({ "file": "d.msh" });
+    v["bodies"][1]["mesh"] = json!({ "file": "d.msh" });
+    parse(&v).unwrap();
+    v["bodies"][0]["shape"] = json!({ "file": { "path": "d.msh", "reorient": false } });
+    v["bodies"][1]["mesh"] = json!({ "file": { "path": "d.msh" } });
+    parse(&v).unwrap();
+    // The old MPM spelling.
+    v["bodies"][0]["shape"] = json!({ "mesh": { "file": "d.msh" } });
+    let msg = parse(&v).unwrap_err().to_string();
+    assert!(
+        msg.contains("bodies[0].shape.mesh")
+            && msg.contains(r#""shape": { "file": { "path": "d.msh" } }"#),
+        "{msg}"
+    );
+    // Caught when read: missing, a surface mesh, not Gmsh.
+    v["bodies"][0]["shape"] = json!({ "file": "nope.msh" });
+    let msg = parse(&v).unwrap_err().to_string();
+    assert!(
+        msg.contains("bodies[0].shape.file.path") && msg.contains("nope.msh"),
+        "{msg}"
+    );
+    std::fs::write(
+        dir.path().join("bunny.stl"),
+        "solid bunny
+endsolid bunny
+",
+    )
+    .unwrap();
+    v["bodies"][0]["shape"] = json!({ "file": "d.msh" });
+    v["bodies"][1]["mesh"] = json!({ "file": "bunny.stl" });
+    let msg = parse(&v).unwrap_err().to_string();
+    assert!(
+        msg.contains("bodies[1].mesh.file.path")
+            && msg.contains("python -m femp.mesh bunny.stl bunny.msh"),
+        "{msg}"
+    );
+    std::fs::write(
+        dir.path().join("plain.msh"),
+        "solid bunny
+",
+    )
+    .unwrap();
+    v["bodies"][1]["mesh"] = json!({ "file": "plain.msh" });
+    let msg = parse(&v).unwrap_err().to_string();
+    assert!(msg.contains("not a Gmsh .msh file"), "{msg}");
+    // A file name is text.
+    v["bodies"][1]["mesh"] = json!({ "file": 3 });
+    let msg = parse(&v).unwrap_err().to_string();
+    assert!(
+        msg.contains(r#"a mesh file: { "path": "body.msh" } or "body.msh""#),
+        "{msg}"
+    );
+}
+
 #[test]
 fn a_degenerate_mesh_names_the_element() {
     let dir = tempfile::tempdir().unwrap();
@@ -520,7 +587,7 @@ fn meshes_are_read_from_regular_files_only() {
             "{p}: {msg}"
         );
         let mut v = base();
-        v["bodies"][0]["shape"] = json!({ "mesh": { "file": p } });
+        v["bodies"][0]["shape"] = json!({ "file": { "path": p } });
         let msg = error_of(&v, dir.path()).unwrap();
         assert!(msg.contains("not a regular file"), "{p}: {msg}");
     }

@@ -490,7 +490,7 @@ proptest! {
         if which {
             v["bodies"][1]["mesh"]["file"]["path"] = json!("m.msh");
         } else {
-            v["bodies"][0]["shape"] = json!({ "mesh": { "file": "m.msh" } });
+            v["bodies"][0]["shape"] = json!({ "file": "m.msh" });
         }
         let r = exercise(&serde_json::to_string(&v).unwrap(), dir.path().to_path_buf());
         prop_assert!(r.is_ok(), "{mesh} corrupted by {ops:?}: {}", r.unwrap_err());
