@@ -30,6 +30,7 @@ from __future__ import annotations
 
 import json
 import os
+import re
 from dataclasses import dataclass, field
 from typing import Any, Dict, List, Optional, Tuple, Union
 
@@ -39,6 +40,8 @@ import numpy.typing as npt
 from . import _femp
 from ._femp import FempError, OutputError, SimulationError, __version__
 from . import contact, transfer
+from . import spec
+from . import spec as spec_module
 
 __all__ = [
     "Scene",
@@ -48,6 +51,7 @@ __all__ = [
     "read_metrics",
     "contact",
     "transfer",
+    "spec",
     "FempError",
     "SceneError",
     "SimulationError",
@@ -122,8 +126,25 @@ class Scene:
     def from_dict(
         d: Dict[str, Any], base_dir: Union[str, os.PathLike] = ".", name: str = "scene"
     ) -> "Scene":
-        """Validate a scene given as a dict (the JSON's structure)."""
-        return Scene.from_json(json.dumps(d), base_dir, name)
+        """Validate a scene given as a dict (the JSON's structure; numpy arrays and scalars
+        wherever numbers go). Errors name the field (``bodies[1].material.nu``), not a place in
+        JSON text nobody wrote."""
+        try:
+            text = json.dumps(d, default=_json_default)
+        except ValueError as e:  # NaN and infinities are valid Python floats, not JSON
+            raise SceneError(f"(root): {e}") from None
+        try:
+            return Scene(_femp.Scene.from_json(text, os.fspath(base_dir), name))
+        except _femp.SceneError as e:
+            err = SceneError(*(_POSITION.sub("", str(a)) for a in e.args))
+            err.__cause__ = e
+            raise err from None
+
+    @staticmethod
+    def from_spec(spec: "spec_module.SceneSpec",
+                  base_dir: Union[str, os.PathLike] = ".") -> "Scene":
+        """Validate a scene built from typed values (:mod:`femp.spec`)."""
+        return Scene.from_dict(spec.to_dict(), base_dir, spec.name or "scene")
 
     def to_json(self) -> str:
         """The JSON text of the scene."""
@@ -159,6 +180,21 @@ class Scene:
 
     def __repr__(self) -> str:
         return f"femp.Scene(name={self.name!r}, dimension={self.dimension})"
+
+
+_POSITION = re.compile(r" at line \d+ column \d+")
+
+
+def _json_default(v: Any) -> Any:
+    """numpy arrays and scalars as JSON values; anything else a ``TypeError`` naming it."""
+    if isinstance(v, np.ndarray):
+        return v.tolist()
+    if isinstance(v, np.generic):
+        return v.item()
+    if isinstance(v, os.PathLike):
+        return os.fspath(v)
+    raise TypeError(f"a scene holds numbers, text, lists and dicts: not {type(v).__name__} "
+                    f"({v!r})")
 
 
 def _set_path(d: Any, path: str, value: Any) -> None:
