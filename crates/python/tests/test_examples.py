@@ -4,6 +4,7 @@ holds)."""
 
 import contact_on_a_mesh
 import control_loop
+import pytest
 import read_frames
 
 
@@ -25,3 +26,11 @@ def test_control_loop_brings_the_block_to_its_goal_and_records_it(tmp_path, caps
     assert "particles inside a body: 0" in capsys.readouterr().out
     assert (out / "pictures" / "animation.gif").read_bytes()[:6] == b"GIF89a"
     assert (out / "frames").is_dir() and (out / "particles.pvd").exists()
+
+
+def test_mesh_from_stl_fills_the_surface_and_the_ball_falls_freely(tmp_path, capsys):
+    pytest.importorskip("gmsh")
+    import mesh_from_stl
+
+    assert mesh_from_stl.main(["--out", str(tmp_path / "stl")]) == 0
+    assert "volume exact, mass within 5 %" in capsys.readouterr().out
