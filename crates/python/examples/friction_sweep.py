@@ -13,8 +13,9 @@ outputs (metrics.csv, summary.json) are in ``OUT/runs/``.
 Scaling past one machine: the runs are independent, so any joblib backend spreads them —
 ``with joblib.parallel_config(backend="dask"):`` after starting a ``dask.distributed.Client``
 on a cluster, or ``backend="ray"`` after ``ray.util.joblib.register_ray()`` — with femp
-installed on every worker and the output directory on a shared file system. Only the local
-backend (loky) is tested here.
+installed on every worker and the output directory on a shared file system; ``femp.sweep`` runs
+femp's own ``run_case`` on Dask or Ray with nothing else on the workers (tested in
+tests/test_scale.py).
 """
 
 from __future__ import annotations

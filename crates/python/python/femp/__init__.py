@@ -52,6 +52,7 @@ __all__ = [
     "contact",
     "transfer",
     "spec",
+    "sweep",
     "FempError",
     "SceneError",
     "SimulationError",
@@ -180,6 +181,11 @@ class Scene:
 
     def __repr__(self) -> str:
         return f"femp.Scene(name={self.name!r}, dimension={self.dimension})"
+
+    def __reduce__(self) -> Any:
+        # Pickled as its JSON text, base directory and name (a worker process or another
+        # machine with femp installed validates it again).
+        return (Scene.from_json, (self.to_json(), self.base_dir, self.name))
 
 
 _POSITION = re.compile(r" at line \d+ column \d+")
@@ -539,3 +545,6 @@ def read_metrics(path: Union[str, os.PathLike]) -> Dict[str, np.ndarray]:
         path = os.path.join(path, "metrics.csv")
     table = np.genfromtxt(path, delimiter=",", names=True, ndmin=1)
     return {name: np.asarray(table[name], dtype=float) for name in table.dtype.names or ()}
+
+
+from . import sweep  # noqa: E402  (it uses Scene, run and RunResult above)
