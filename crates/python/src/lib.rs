@@ -7,6 +7,8 @@
 //! for Python signals: Ctrl-C stops a run or a step (between Newton iterations) and raises
 //! `KeyboardInterrupt`.
 
+mod mesh_contact;
+
 use std::path::PathBuf;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex};
@@ -1423,6 +1425,7 @@ fn _femp(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<PyScene>()?;
     m.add_class::<PyWorld>()?;
     m.add_class::<PyTransfer>()?;
+    m.add_class::<mesh_contact::PyContactMesh>()?;
     m.add_function(wrap_pyfunction!(run, m)?)?;
     m.add_function(wrap_pyfunction!(point_edge_potential, m)?)?;
     m.add_function(wrap_pyfunction!(point_triangle_potential, m)?)?;

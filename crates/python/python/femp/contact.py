@@ -59,3 +59,91 @@ def ccd(start: npt.ArrayLike, end: npt.ArrayLike,
 
 def _v(x: npt.ArrayLike) -> np.ndarray:
     return np.ascontiguousarray(x, dtype=float).reshape(-1)
+
+
+class ContactMesh:
+    """femp's barrier contact over a whole mesh: points (particles, or another body's boundary
+    vertices) against this mesh's boundary facets — edges in 2D, triangles in 3D — with the
+    broad phase, the active terms, the potential's gradient and sparse Hessian, and batched CCD
+    of the BFEMP step (femp-contact's parallel code; the GIL is released).
+
+    Two bodies that may touch each other are two one-sided problems, as in a BFEMP scene: body
+    A's vertices against B's ``ContactMesh`` and B's vertices against A's; the gradients add.
+
+    The barrier acts on the distance ``d`` (``b(d) = -kappa (d/dhat - 1)^2 ln(d/dhat)``), not on
+    ``d^2`` as the IPC Toolkit's does, and a point near several facets counts each closest
+    feature once (vertices and edges shared by facets are not counted twice: BFEMP eqs. 31–32).
+    """
+
+    def __init__(self, vertices: npt.ArrayLike, facets: npt.ArrayLike, dhat: float,
+                 kappa: float, hessian: str = "projected"):
+        self._inner = _femp.ContactMesh(_m(vertices), np.ascontiguousarray(facets, np.int64),
+                                        float(dhat), float(kappa), hessian)
+
+    @property
+    def dimension(self) -> int:
+        """2 or 3."""
+        return int(self._inner.dimension)
+
+    @property
+    def num_vertices(self) -> int:
+        return int(self._inner.num_vertices)
+
+    def set_vertices(self, vertices: npt.ArrayLike) -> None:
+        """Move the mesh (every vertex, nv × D)."""
+        self._inner.set_vertices(_m(vertices))
+
+    def candidates(self, points: npt.ArrayLike,
+                   within: Optional[float] = None) -> Tuple[np.ndarray, np.ndarray]:
+        """Broad phase: ``(point, facet)`` index arrays of the pairs whose boxes come within
+        ``within`` (default ``dhat``)."""
+        return self._inner.candidates(_m(points), within)
+
+    def potential(self, points: npt.ArrayLike, weights: Optional[npt.ArrayLike] = None,
+                  hessian: bool = True) -> Dict[str, Any]:
+        """The potential ``sum w b(d)`` of ``points`` (weights ``w``, default 1) against the
+        mesh: a dict of ``value``, ``terms`` (active point–feature terms), ``gradient``
+        ((n + nv) × D: the points' rows, then the mesh vertices') and ``hessian`` (PSD, as
+        Newton uses it: a ``scipy.sparse.csr_matrix`` of size D(n + nv), in the gradient's
+        order flattened row by row; needs scipy). ``ValueError`` when a point touches a facet
+        (distance 0: penetration)."""
+        w = None if weights is None else np.ascontiguousarray(weights, dtype=float)
+        value, terms, grad, h = self._inner.potential(_m(points), w, hessian)
+        out: Dict[str, Any] = {"value": value, "terms": terms, "gradient": grad}
+        if hessian:
+            try:
+                import scipy.sparse as sp
+            except ImportError as e:  # pragma: no cover - scipy is a test dependency
+                raise ImportError("ContactMesh.potential's Hessian is a scipy.sparse matrix: "
+                                  "pip install scipy (or pass hessian=False)") from e
+            n = grad.size
+            out["hessian"] = sp.csr_matrix((h["values"], (h["rows"], h["cols"])), shape=(n, n))
+        return out
+
+    def active(self, points: npt.ArrayLike,
+               weights: Optional[npt.ArrayLike] = None) -> Dict[str, np.ndarray]:
+        """The active terms (distance below ``dhat``): arrays ``point``, ``kind`` (the closest
+        feature: 1 vertex, 2 edge, 3 face), ``feature`` (its mesh vertices, -1 padded, × 3),
+        ``distance`` and ``weight`` (w times the feature's duplicate-removal coefficient)."""
+        w = None if weights is None else np.ascontiguousarray(weights, dtype=float)
+        return self._inner.active(_m(points), w)
+
+    def max_step(self, points0: npt.ArrayLike, points1: npt.ArrayLike,
+                 vertices1: Optional[npt.ArrayLike] = None) -> Tuple[float, Optional[Tuple[int, int]]]:
+        """Batched CCD: the largest ``alpha`` in (0, 1] such that no point reaches a facet on
+        the straight motion ``points0 -> points1`` while the mesh moves to ``vertices1``
+        (default: it stays) — conservative — and the ``(point, facet)`` that limits it
+        (``None`` when nothing does)."""
+        v1 = None if vertices1 is None else _m(vertices1)
+        alpha, p, f = self._inner.max_step(_m(points0), _m(points1), v1)
+        return float(alpha), (None if p < 0 else (int(p), int(f)))
+
+    def __repr__(self) -> str:
+        return f"femp.contact.ContactMesh(dimension={self.dimension}, vertices={self.num_vertices})"
+
+
+def _m(x: npt.ArrayLike) -> np.ndarray:
+    a = np.ascontiguousarray(x, dtype=float)
+    if a.ndim != 2:
+        raise ValueError(f"expected an (n, D) array, got shape {a.shape}")
+    return a
