@@ -339,22 +339,29 @@ impl Drop for Worker {
     }
 }
 
-/// The rows of an (n, D) array.
-fn rows<const D: usize>(
+/// The rows of an (n, D) array, or what is wrong with its shape.
+pub(crate) fn array_rows<const D: usize>(
     a: &PyReadonlyArray2<'_, f64>,
-    what: &str,
-) -> PyResult<Vec<SVector<f64, D>>> {
+) -> Result<Vec<SVector<f64, D>>, String> {
     let a = a.as_array();
     if a.ncols() != D {
-        return Err(StateError::new_err(format!(
-            "{what}: shape ({}, {}), expected (n, {D})",
+        return Err(format!(
+            "shape ({}, {}), expected (n, {D})",
             a.nrows(),
             a.ncols()
-        )));
+        ));
     }
     Ok((0..a.nrows())
         .map(|i| SVector::from_fn(|k, _| a[(i, k)]))
         .collect())
+}
+
+/// The rows of an (n, D) array set on a World (a wrong shape is a `StateError` on `what`).
+fn rows<const D: usize>(
+    a: &PyReadonlyArray2<'_, f64>,
+    what: &str,
+) -> PyResult<Vec<SVector<f64, D>>> {
+    array_rows(a).map_err(|m| StateError::new_err(format!("{what}: {m}")))
 }
 
 fn vectors<const D: usize>(v: &[SVector<f64, D>]) -> Array2<f64> {

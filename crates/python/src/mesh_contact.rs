@@ -27,17 +27,7 @@ fn rows<const D: usize>(
     a: &PyReadonlyArray2<'_, f64>,
     what: &str,
 ) -> PyResult<Vec<SVector<f64, D>>> {
-    let a = a.as_array();
-    if a.ncols() != D {
-        return Err(err(format!(
-            "{what}: shape ({}, {}), expected (n, {D})",
-            a.nrows(),
-            a.ncols()
-        )));
-    }
-    let out: Vec<SVector<f64, D>> = (0..a.nrows())
-        .map(|i| SVector::from_fn(|k, _| a[(i, k)]))
-        .collect();
+    let out = crate::array_rows::<D>(a).map_err(|m| err(format!("{what}: {m}")))?;
     if let Some(i) = out.iter().position(|r| !r.iter().all(|c| c.is_finite())) {
         return Err(err(format!("{what}: row {i} is not finite")));
     }

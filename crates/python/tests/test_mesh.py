@@ -14,29 +14,10 @@ import femp.mesh as fm  # noqa: E402
 
 
 def icosphere(levels=2, r=0.1):
-    t = (1 + 5 ** 0.5) / 2
-    v = [[-1, t, 0], [1, t, 0], [-1, -t, 0], [1, -t, 0], [0, -1, t], [0, 1, t], [0, -1, -t],
-         [0, 1, -t], [t, 0, -1], [t, 0, 1], [-t, 0, -1], [-t, 0, 1]]
-    f = [[0, 11, 5], [0, 5, 1], [0, 1, 7], [0, 7, 10], [0, 10, 11], [1, 5, 9], [5, 11, 4],
-         [11, 10, 2], [10, 7, 6], [7, 1, 8], [3, 9, 4], [3, 4, 2], [3, 2, 6], [3, 6, 8],
-         [3, 8, 9], [4, 9, 5], [2, 4, 11], [6, 2, 10], [8, 6, 7], [9, 8, 1]]
-    v = [np.array(x, float) / np.linalg.norm(x) for x in v]
-    for _ in range(levels):
-        cache, nf = {}, []
+    """A triangulated sphere (the example's): points, triangles."""
+    from mesh_from_stl import icosphere as sphere
 
-        def mid(a, b):
-            k = (min(a, b), max(a, b))
-            if k not in cache:
-                m = v[a] + v[b]
-                v.append(m / np.linalg.norm(m))
-                cache[k] = len(v) - 1
-            return cache[k]
-
-        for a, b, c in f:
-            ab, bc, ca = mid(a, b), mid(b, c), mid(c, a)
-            nf += [[a, ab, ca], [b, bc, ab], [c, ca, bc], [ab, bc, ca]]
-        f = nf
-    return r * np.array(v), np.array(f)
+    return sphere(r, levels)
 
 
 def fem_scene(dim, mesh_path, rho=1000.0):

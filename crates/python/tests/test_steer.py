@@ -9,24 +9,7 @@ import pytest
 
 import femp
 
-PUSHER_SCENE = {
-    "dimension": 2, "gravity": [0, -9.81],
-    "time": {"dt": 0.01, "duration": 2.0, "frame_interval": 0.1},
-    "mpm": {"grid_spacing": 0.05},
-    "bodies": [
-        {"kind": "mpm", "name": "block",
-         "shape": {"box": {"min": [-0.1, 0.005], "max": [0.1, 0.105]}},
-         "material": {"E": 1e5, "nu": 0.3, "rho": 1000}},
-        {"kind": "fem", "name": "pusher",
-         "mesh": {"rectangle": {"min": [-0.3, 0.02], "max": [-0.2, 0.1], "cells": [2, 2]}},
-         "material": {"E": 1e6, "nu": 0.3, "rho": 1000}},
-        {"kind": "fem", "name": "plate",
-         "mesh": {"rectangle": {"min": [-1, -0.05], "max": [1, 0], "cells": [20, 1]}},
-         "material": {"E": 1e7, "nu": 0.3, "rho": 1000},
-         "prescribed": [{"vertices": "all", "motion": []}]},
-    ],
-    "contact": {"dhat": 0.004, "kappa": 1e5, "friction": 0.3},
-}
+from control_loop import SCENE as PUSHER_SCENE  # noqa: E402  (the example's pusher scene)
 
 
 def block_x(w):

@@ -210,6 +210,15 @@ fn check_mesh_files(spec: &SceneSpec, base_dir: &Path) -> Result<(), SimError> {
                 fill(&format!("`{}` is a .{ext} file", file.path)),
             ));
         }
+        let unreadable = |e: std::io::Error| {
+            invalid(
+                field.clone(),
+                format!(
+                    "{}: {e} (relative paths start at the scene's directory)",
+                    path.display()
+                ),
+            )
+        };
         // Only a regular file is opened (a FIFO would block the open, a device never end).
         match std::fs::metadata(&path) {
             Ok(m) if m.is_file() => {}
@@ -219,15 +228,7 @@ fn check_mesh_files(spec: &SceneSpec, base_dir: &Path) -> Result<(), SimError> {
                     format!("{}: not a regular file", path.display()),
                 ));
             }
-            Err(e) => {
-                return Err(invalid(
-                    field,
-                    format!(
-                        "{}: {e} (relative paths start at the scene's directory)",
-                        path.display()
-                    ),
-                ));
-            }
+            Err(e) => return Err(unreadable(e)),
         }
         let first = match std::fs::File::open(&path) {
             Ok(f) => {
@@ -238,15 +239,7 @@ fn check_mesh_files(spec: &SceneSpec, base_dir: &Path) -> Result<(), SimError> {
                 );
                 line
             }
-            Err(e) => {
-                return Err(invalid(
-                    field,
-                    format!(
-                        "{}: {e} (relative paths start at the scene's directory)",
-                        path.display()
-                    ),
-                ));
-            }
+            Err(e) => return Err(unreadable(e)),
         };
         if !first.trim_start().starts_with("$MeshFormat") {
             return Err(invalid(
