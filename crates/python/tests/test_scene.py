@@ -77,5 +77,8 @@ def test_world_methods_are_visible(fixtures):
     w = femp.World(femp.Scene.load(os.path.join(fixtures, "block_on_plate.json")))
     names = set(dir(w))
     assert {"step", "time", "steps", "dt", "dimension", "fem_bodies", "mpm_bodies",
-            "particles", "fem", "metrics", "warnings"} <= names
+            "particles", "fem", "metrics", "warnings", "set_particles", "set_fem",
+            "apply_forces", "apply_impulses", "prescribe", "set_friction", "set_material",
+            "record", "write_frame", "stop_recording", "recording"} <= names
+    assert "Dirichlet" in (femp.World.prescribe.__doc__ or "")
     assert femp.World.step.__doc__ and "solver report" in femp.World.step.__doc__
