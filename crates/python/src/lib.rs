@@ -1120,6 +1120,108 @@ fn sq_distance(
     }
 }
 
+/// The squared distance from point `p` to the edge `a b` (2D or 3D) or the triangle `a b c`
+/// (3D), with its closest feature and its gradient and exact Hessian over the whole stencil
+/// (`p`, then the edge's or triangle's vertices): `(feature, s, gradient (N×D), hessian
+/// (ND×ND))`, the feature `"v0"`, `"v1"`, `"v2"` (a vertex), `"edge"` (the edge's interior),
+/// `"e01"`, `"e12"`, `"e20"` (a triangle edge's interior) or `"face"`.
+#[pyfunction]
+#[pyo3(signature = (p, a, b, c = None))]
+#[allow(clippy::type_complexity)]
+fn sq_distance_derivatives<'py>(
+    py: Python<'py>,
+    p: PyReadonlyArray1<'py, f64>,
+    a: PyReadonlyArray1<'py, f64>,
+    b: PyReadonlyArray1<'py, f64>,
+    c: Option<PyReadonlyArray1<'py, f64>>,
+) -> PyResult<(
+    &'static str,
+    f64,
+    Bound<'py, numpy::PyArray2<f64>>,
+    Bound<'py, numpy::PyArray2<f64>>,
+)> {
+    use femp_contact::distance::point_edge::{self, PointEdgeRegion};
+    use femp_contact::distance::point_triangle::{self, PointTriangleRegion};
+    use femp_contact::{ContactPotential, Feature};
+    fn stencil<'py, const D: usize>(
+        py: Python<'py>,
+        p: &SVector<f64, D>,
+        verts: &[SVector<f64, D>],
+        (name, feature): (&'static str, Feature),
+    ) -> (
+        &'static str,
+        f64,
+        Bound<'py, numpy::PyArray2<f64>>,
+        Bound<'py, numpy::PyArray2<f64>>,
+    ) {
+        let (s, g, h) = ContactPotential::<D>::feature_sq_dist(p, feature, verts);
+        let (fv, k) = feature.vertices();
+        // Stencil point i of the feature (0: p) → its place among (p, a, b[, c]).
+        let place = |i: usize| if i == 0 { 0 } else { 1 + fv[i - 1] as usize };
+        let n = 1 + verts.len();
+        let mut grad = Array2::<f64>::zeros((n, D));
+        let mut hess = Array2::<f64>::zeros((n * D, n * D));
+        for i in 0..=k {
+            for r in 0..D {
+                grad[(place(i), r)] = g[i][r];
+            }
+            for j in 0..=k {
+                for r in 0..D {
+                    for q in 0..D {
+                        hess[(place(i) * D + r, place(j) * D + q)] = h[i][j][(r, q)];
+                    }
+                }
+            }
+        }
+        (name, s, grad.into_pyarray(py), hess.into_pyarray(py))
+    }
+    match (p.as_array().len(), c) {
+        (3, Some(c)) => {
+            let v = |x: &PyReadonlyArray1<'py, f64>, w: &str| point::<3>(x, w);
+            let (p, t) = (v(&p, "p")?, [v(&a, "a")?, v(&b, "b")?, v(&c, "c")?]);
+            use PointTriangleRegion::*;
+            let f = match point_triangle::region(&p, &t[0], &t[1], &t[2]) {
+                V0 => ("v0", Feature::Vertex(0)),
+                V1 => ("v1", Feature::Vertex(1)),
+                V2 => ("v2", Feature::Vertex(2)),
+                E01 => ("e01", Feature::Edge(0, 1)),
+                E12 => ("e12", Feature::Edge(1, 2)),
+                E20 => ("e20", Feature::Edge(2, 0)),
+                Face => ("face", Feature::Face(0, 1, 2)),
+            };
+            Ok(stencil::<3>(py, &p, &t, f))
+        }
+        (d @ (2 | 3), None) => {
+            fn edge<'py, const D: usize>(
+                py: Python<'py>,
+                pts: [&PyReadonlyArray1<'py, f64>; 3],
+            ) -> PyResult<(
+                &'static str,
+                f64,
+                Bound<'py, numpy::PyArray2<f64>>,
+                Bound<'py, numpy::PyArray2<f64>>,
+            )> {
+                let p = point::<D>(pts[0], "p")?;
+                let e = [point::<D>(pts[1], "a")?, point::<D>(pts[2], "b")?];
+                let f = match point_edge::region(&p, &e[0], &e[1]) {
+                    PointEdgeRegion::V0 => ("v0", Feature::Vertex(0)),
+                    PointEdgeRegion::V1 => ("v1", Feature::Vertex(1)),
+                    PointEdgeRegion::Interior => ("edge", Feature::Edge(0, 1)),
+                };
+                Ok(stencil::<D>(py, &p, &e, f))
+            }
+            if d == 2 {
+                edge::<2>(py, [&p, &a, &b])
+            } else {
+                edge::<3>(py, [&p, &a, &b])
+            }
+        }
+        (n, _) => Err(PyValueError::new_err(format!(
+            "p: expected 2 coordinates (edge) or 3 (edge or triangle), got {n}"
+        ))),
+    }
+}
+
 /// Conservative time of impact in `[0, 1]` of a point moving linearly from `start[0]` to
 /// `end[0]` against an edge (2 more rows, 2D or 3D) or triangle (3 more rows, 3D) moving
 /// linearly from `start[1:]` to `end[1:]`; `None` when they do not come within the CCD's
@@ -1438,6 +1540,7 @@ fn _femp(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(point_triangle_potential, m)?)?;
     m.add_function(wrap_pyfunction!(barrier, m)?)?;
     m.add_function(wrap_pyfunction!(sq_distance, m)?)?;
+    m.add_function(wrap_pyfunction!(sq_distance_derivatives, m)?)?;
     m.add_function(wrap_pyfunction!(ccd_toi, m)?)?;
     Ok(())
 }

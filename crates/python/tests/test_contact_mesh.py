@@ -174,3 +174,32 @@ def test_two_spheres_touching_through_both_meshes():
     push_b = ab["gradient"][na:].sum(0) + ba["gradient"][:na].sum(0)
     np.testing.assert_allclose(push_a, -push_b, rtol=1e-9)
     assert push_a[0] > 0  # the energy grows as A moves towards B
+
+
+@pytest.mark.parametrize("case", [
+    ("face", [0.2, 0.3, 0.4]), ("v0", [-0.3, -0.2, 0.1]), ("v1", [1.4, -0.1, 0.2]),
+    ("v2", [-0.1, 1.3, -0.2]), ("e01", [0.5, -0.3, 0.2]), ("e12", [0.7, 0.6, 0.1]),
+    ("e20", [-0.4, 0.5, 0.3]),
+])
+def test_distance_types_and_derivatives_against_finite_differences(case):
+    """Each closest feature of a point against a (tilted) triangle, and the gradient and exact
+    Hessian of the squared distance over the whole stencil against central differences."""
+    kind, p = case
+    tri = np.array([[0.0, 0.0, 0.0], [1.0, 0.0, 0.1], [0.0, 1.0, -0.1]])
+    x = np.vstack([p, tri])
+    f, s, g, H = fc.sq_distance_derivatives(*x)
+    assert f == kind and s == pytest.approx(fc.sq_distance(*x), rel=1e-12)
+    h = 1e-6
+    for i in range(4):
+        for a in range(3):
+            xp, xm = x.copy(), x.copy()
+            xp[i, a] += h
+            xm[i, a] -= h
+            assert (fc.sq_distance(*xp) - fc.sq_distance(*xm)) / (2 * h) == pytest.approx(
+                g[i, a], abs=1e-7)
+            gp, gm = fc.sq_distance_derivatives(*xp)[2], fc.sq_distance_derivatives(*xm)[2]
+            np.testing.assert_allclose((gp - gm).ravel() / (2 * h), H[3 * i + a], atol=1e-6)
+    # 2D: a point against an edge.
+    f2, s2, g2, H2 = fc.sq_distance_derivatives([0.5, 0.3], [0.0, 0.0], [1.0, 0.0])
+    assert (f2, s2) == ("edge", pytest.approx(0.09)) and g2.shape == (3, 2) and H2.shape == (6, 6)
+    np.testing.assert_allclose(g2[0], [0.0, 0.6], atol=1e-15)

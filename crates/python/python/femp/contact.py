@@ -47,6 +47,18 @@ def sq_distance(p: npt.ArrayLike, a: npt.ArrayLike, b: npt.ArrayLike,
     return _femp.sq_distance(_v(p), _v(a), _v(b), None if c is None else _v(c))
 
 
+def sq_distance_derivatives(p: npt.ArrayLike, a: npt.ArrayLike, b: npt.ArrayLike,
+                            c: Optional[npt.ArrayLike] = None
+                            ) -> Tuple[str, float, np.ndarray, np.ndarray]:
+    """The squared distance from ``p`` to the edge ``a b`` or the triangle ``a b c`` with its
+    closest feature and derivatives over the whole stencil (``p``, then the edge's or triangle's
+    vertices): ``(feature, s, gradient (N × D), hessian (ND × ND))``, the Hessian exact (not
+    projected; piecewise smooth across features); the feature is
+    ``"v0"``, ``"v1"``, ``"v2"`` (a vertex), ``"edge"`` (the edge's interior), ``"e01"``,
+    ``"e12"``, ``"e20"`` (a triangle edge's interior) or ``"face"``."""
+    return _femp.sq_distance_derivatives(_v(p), _v(a), _v(b), None if c is None else _v(c))
+
+
 def ccd(start: npt.ArrayLike, end: npt.ArrayLike,
         max_iterations: int = 800) -> Optional[float]:
     """Conservative time of impact in [0, 1] of a point against an edge or triangle, all moving
