@@ -1,6 +1,6 @@
 //! The scene file format: serde types mirroring the JSON, field by field (documented in
 //! `docs/scenes.md`). Unknown fields are errors. Vectors are plain arrays whose length must
-//! equal the scene's dimension (checked in [`super::validate`]).
+//! equal the scene's dimension (checked by [`super::parse`]).
 
 use serde::{Deserialize, Serialize};
 
