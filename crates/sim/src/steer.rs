@@ -2,15 +2,17 @@
 //! code needs. Set the particles' and FEM vertices' positions and velocities (checked: the
 //! right number of finite values, no body put into or onto another, no element inverted, no
 //! vertex the scene itself moves), apply external forces during the next step, prescribe where
-//! FEM vertices are at the next step's end, change the friction coefficient. A refused change
-//! is a [`SimError::State`] naming what and why, and leaves the world as it was.
+//! FEM vertices are at the next step's end, change the friction coefficient and the materials
+//! (BFEMP). A refused change is a [`SimError::State`] naming what and why, and leaves the world
+//! as it was.
 //!
 //! Forces and prescribed positions act during the next step only ([`World::step`] clears them
 //! once it succeeds; a failed step keeps them for the retry): a control loop sets them before
 //! every step. A force is held constant over the step — in BFEMP's incremental potential a term
 //! `−w f·x` beside gravity's `−w m g·x` (particle forces spread to the grid nodes with the
 //! particle's B-spline weights, `f_i = Σ_p w_ip f_p`), in augury's explicit step an acceleration
-//! `f/m` beside gravity. A prescribed vertex moves on the straight line from where it is to its
+//! `f/m` beside gravity in the accelerations evaluated at the step's end (velocity Verlet: the
+//! step's second half-kick and the next step's first). A prescribed vertex moves on the straight line from where it is to its
 //! target over the step (over each substep, the matching part of it) as a Dirichlet unknown of
 //! the step, as the scene's `prescribed` vertex sets do.
 
