@@ -1,7 +1,9 @@
 //! Contact hot paths:
 //! (a) barrier potential + gradient + PSD Hessian for 10⁵ particles near a boundary of ~10⁴
 //!     edges (2D) or triangles (3D), including the broad phase, 1 and 2 threads, with the
-//!     projected Hessian and (`…_gauss_newton`) the Gauss–Newton one;
+//!     projected Hessian and (`…_gauss_newton`) the Gauss–Newton one, and (`…+coo`) with the
+//!     global gradient and Hessian triplets assembled (`assembly::assemble`, what the Python
+//!     package's `ContactMesh.potential` computes);
 //! (b) CCD time per query on the 3,085 vertex–face queries of the Wang et al. 2021 benchmark.
 //!
 //! The scenes are deterministic formulas (no RNG), reproduced exactly by
@@ -10,6 +12,7 @@
 //! Run: `cargo bench -p femp-contact --bench contact`.
 
 use criterion::{BenchmarkId, Criterion, Throughput, criterion_group, criterion_main};
+use femp_contact::assembly::{Coo, assemble};
 use femp_contact::broad_phase::{self, Candidates};
 use femp_contact::ccd::{self, CcdOptions};
 use femp_contact::{
@@ -63,6 +66,29 @@ fn bench_potential<const D: usize>(c: &mut Criterion, name: &str, (v, f, p): sce
                 })
             });
         }
+    }
+    // The same, with the gradient and the Hessian's triplets over all unknowns assembled.
+    for threads in [1usize, 2] {
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap();
+        let (mut cands, mut terms, mut ders) = (Candidates::default(), Vec::new(), Vec::new());
+        let id = "broad+energy+grad+hess+coo";
+        group.bench_with_input(BenchmarkId::new(id, threads), &threads, |b, _| {
+            b.iter(|| {
+                pool.install(|| {
+                    broad_phase::candidates_within(&p, &v, pot.topology.facets(), DHAT, &mut cands);
+                    pot.collect_terms(&p, &w, &v, &cands, &mut terms).unwrap();
+                    let e = pot.energy(&terms);
+                    pot.derivatives(&terms, &p, &v, &mut ders);
+                    let mut grad = vec![0.0; (p.len() + v.len()) * D];
+                    let mut coo = Coo::default();
+                    assemble(&ders, p.len(), &mut grad, Some(&mut coo)).unwrap();
+                    black_box((e, grad, coo))
+                })
+            })
+        });
     }
     group.finish();
 }

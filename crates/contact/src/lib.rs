@@ -41,6 +41,7 @@ mod barrier;
 /// Terms per chunk of the energies' parallel sums: each chunk is summed in order and the chunk
 /// sums in order, so an energy has the same bits on any number of threads.
 pub(crate) const SUM_CHUNK: usize = 1024;
+pub mod assembly;
 pub mod broad_phase;
 pub mod ccd;
 pub mod distance;

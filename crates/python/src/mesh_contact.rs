@@ -138,78 +138,20 @@ fn potential_d<const D: usize>(
     w: &[f64],
     hessian: bool,
 ) -> PyResult<Potential> {
-    use rayon::prelude::*;
     m.collect(points, w)?;
     let value = m.potential.energy(&m.terms);
     m.potential
         .derivatives(&m.terms, points, &m.x, &mut m.derivatives);
-    let n = points.len();
-    if i32::try_from((n + m.x.len()) * D).is_err() {
-        return Err(err(
-            "more unknowns than a sparse matrix of 32-bit indices holds",
-        ));
-    }
-    let index = |t: &TermDerivatives<D>, k: usize| {
-        if k == 0 {
-            t.particle as usize
-        } else {
-            n + t.vertices[k - 1] as usize
-        }
-    };
-    let mut grad = vec![0.0; (n + m.x.len()) * D];
-    for t in &m.derivatives {
-        for i in 0..t.n {
-            for a in 0..D {
-                grad[index(t, i) * D + a] += t.grad[i][a];
-            }
-        }
-    }
-    if !hessian {
-        return Ok((
-            value,
-            m.terms.len(),
-            grad,
-            Vec::new(),
-            Vec::new(),
-            Vec::new(),
-        ));
-    }
-    // Each term's (n D)² entries at its own offset, written in parallel.
-    let sizes: Vec<usize> = m.derivatives.iter().map(|t| t.n * t.n * D * D).collect();
-    let total: usize = sizes.iter().sum();
-    let (mut rows, mut cols, mut vals) = (vec![0i32; total], vec![0i32; total], vec![0.0; total]);
-    let mut parts = Vec::with_capacity(sizes.len());
-    let (mut r, mut c, mut v) = (&mut rows[..], &mut cols[..], &mut vals[..]);
-    for &len in &sizes {
-        let (r0, r1) = std::mem::take(&mut r).split_at_mut(len);
-        let (c0, c1) = std::mem::take(&mut c).split_at_mut(len);
-        let (v0, v1) = std::mem::take(&mut v).split_at_mut(len);
-        parts.push((r0, c0, v0));
-        (r, c, v) = (r1, c1, v1);
-    }
-    m.derivatives
-        .par_iter()
-        .zip(parts)
-        .with_min_len(1024)
-        .for_each(|(t, (r, c, v))| {
-            let base: [i32; 4] =
-                std::array::from_fn(|k| if k < t.n { (index(t, k) * D) as i32 } else { 0 });
-            let mut e = 0;
-            for i in 0..t.n {
-                for j in 0..t.n {
-                    let h = &t.hess[i][j];
-                    for a in 0..D {
-                        for b in 0..D {
-                            r[e] = base[i] + a as i32;
-                            c[e] = base[j] + b as i32;
-                            v[e] = h[(a, b)];
-                            e += 1;
-                        }
-                    }
-                }
-            }
-        });
-    Ok((value, m.terms.len(), grad, rows, cols, vals))
+    let mut grad = vec![0.0; (points.len() + m.x.len()) * D];
+    let mut coo = femp_contact::assembly::Coo::default();
+    femp_contact::assembly::assemble(
+        &m.derivatives,
+        points.len(),
+        &mut grad,
+        hessian.then_some(&mut coo),
+    )
+    .map_err(err)?;
+    Ok((value, m.terms.len(), grad, coo.rows, coo.cols, coo.values))
 }
 
 /// The active terms of `points` against `m`: point, feature kind (1 vertex, 2 edge, 3 face),
