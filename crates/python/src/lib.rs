@@ -71,9 +71,15 @@ fn py_err(e: SimError) -> PyErr {
         | SimError::TooLarge { .. } => SceneError::new_err(msg),
         SimError::Interrupted { .. } => PyKeyboardInterrupt::new_err(msg),
         SimError::State { .. } => StateError::new_err(msg),
+        // The program's options, named as the Python calls take them.
         SimError::OutputBusy { .. }
         | SimError::StaleOutput { .. }
-        | SimError::OutputLink { .. } => OutputError::new_err(msg),
+        | SimError::OutputLink { .. } => OutputError::new_err(
+            msg.replace("pass --overwrite", "pass overwrite=True")
+                .replace("another --out", "another output directory")
+                .replace("in --out", "in the output directory")
+                .replace("inside --out", "inside the output directory"),
+        ),
         _ => SimulationError::new_err(msg),
     }
 }
