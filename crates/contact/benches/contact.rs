@@ -25,6 +25,14 @@ use std::hint::black_box;
 mod scenes;
 use scenes::{DHAT, scene2, scene3};
 
+/// A rayon pool of `threads` threads.
+fn pool(threads: usize) -> rayon::ThreadPool {
+    rayon::ThreadPoolBuilder::new()
+        .num_threads(threads)
+        .build()
+        .unwrap()
+}
+
 fn bench_potential<const D: usize>(c: &mut Criterion, name: &str, (v, f, p): scenes::Scene<D>) {
     let pot = ContactPotential::new(
         LogBarrier::new(DHAT, 1e4).unwrap(),
@@ -43,10 +51,7 @@ fn bench_potential<const D: usize>(c: &mut Criterion, name: &str, (v, f, p): sce
     ] {
         let pot = pot.clone().with_hessian(hessian);
         for threads in [1usize, 2] {
-            let pool = rayon::ThreadPoolBuilder::new()
-                .num_threads(threads)
-                .build()
-                .unwrap();
+            let pool = pool(threads);
             let (mut cands, mut terms, mut ders) = (Candidates::default(), Vec::new(), Vec::new());
             group.bench_with_input(BenchmarkId::new(id, threads), &threads, |b, _| {
                 b.iter(|| {
@@ -69,10 +74,7 @@ fn bench_potential<const D: usize>(c: &mut Criterion, name: &str, (v, f, p): sce
     }
     // The same, with the gradient and the Hessian's triplets over all unknowns assembled.
     for threads in [1usize, 2] {
-        let pool = rayon::ThreadPoolBuilder::new()
-            .num_threads(threads)
-            .build()
-            .unwrap();
+        let pool = pool(threads);
         let (mut cands, mut terms, mut ders) = (Candidates::default(), Vec::new(), Vec::new());
         let id = "broad+energy+grad+hess+coo";
         group.bench_with_input(BenchmarkId::new(id, threads), &threads, |b, _| {

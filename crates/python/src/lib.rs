@@ -1126,6 +1126,14 @@ fn sq_distance(
     }
 }
 
+/// A closest feature's name, the squared distance, its gradient and Hessian.
+type DistanceDerivatives<'py> = (
+    &'static str,
+    f64,
+    Bound<'py, numpy::PyArray2<f64>>,
+    Bound<'py, numpy::PyArray2<f64>>,
+);
+
 /// The squared distance from point `p` to the edge `a b` (2D or 3D) or the triangle `a b c`
 /// (3D), with its closest feature and its gradient and exact Hessian over the whole stencil
 /// (`p`, then the edge's or triangle's vertices): `(feature, s, gradient (N×D), hessian
@@ -1140,12 +1148,7 @@ fn sq_distance_derivatives<'py>(
     a: PyReadonlyArray1<'py, f64>,
     b: PyReadonlyArray1<'py, f64>,
     c: Option<PyReadonlyArray1<'py, f64>>,
-) -> PyResult<(
-    &'static str,
-    f64,
-    Bound<'py, numpy::PyArray2<f64>>,
-    Bound<'py, numpy::PyArray2<f64>>,
-)> {
+) -> PyResult<DistanceDerivatives<'py>> {
     use femp_contact::distance::point_edge::{self, PointEdgeRegion};
     use femp_contact::distance::point_triangle::{self, PointTriangleRegion};
     use femp_contact::{ContactPotential, Feature};
@@ -1154,12 +1157,7 @@ fn sq_distance_derivatives<'py>(
         p: &SVector<f64, D>,
         verts: &[SVector<f64, D>],
         (name, feature): (&'static str, Feature),
-    ) -> (
-        &'static str,
-        f64,
-        Bound<'py, numpy::PyArray2<f64>>,
-        Bound<'py, numpy::PyArray2<f64>>,
-    ) {
+    ) -> DistanceDerivatives<'py> {
         let (s, g, h) = ContactPotential::<D>::feature_sq_dist(p, feature, verts);
         let (fv, k) = feature.vertices();
         // Stencil point i of the feature (0: p) → its place among (p, a, b[, c]).
@@ -1201,12 +1199,7 @@ fn sq_distance_derivatives<'py>(
             fn edge<'py, const D: usize>(
                 py: Python<'py>,
                 pts: [&PyReadonlyArray1<'py, f64>; 3],
-            ) -> PyResult<(
-                &'static str,
-                f64,
-                Bound<'py, numpy::PyArray2<f64>>,
-                Bound<'py, numpy::PyArray2<f64>>,
-            )> {
+            ) -> PyResult<DistanceDerivatives<'py>> {
                 let p = point::<D>(pts[0], "p")?;
                 let e = [point::<D>(pts[1], "a")?, point::<D>(pts[2], "b")?];
                 let f = match point_edge::region(&p, &e[0], &e[1]) {
