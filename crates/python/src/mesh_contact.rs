@@ -320,14 +320,14 @@ impl PyContactMesh {
         Bound<'py, numpy::PyArray2<f64>>,
         Bound<'py, PyDict>,
     )> {
-        let (value, n, grad, dim, rows_, cols, vals) = with_mesh!(&mut self.mesh, m => {
+        let d = self.dimension();
+        let (value, n, grad, unknowns, rows_, cols, vals) = with_mesh!(&mut self.mesh, m => {
             let pts = rows(&points, "points")?;
             let w = point_weights(weights.as_ref(), pts.len())?;
             let r = py.detach(|| potential_d(m, &pts, &w, hessian))?;
             (r.0, r.1, r.2, m.x.len() + pts.len(), r.3, r.4, r.5)
         });
-        let d = grad.len() / dim.max(1);
-        let g = Array2::from_shape_vec((dim, d), grad).map_err(err)?;
+        let g = Array2::from_shape_vec((unknowns, d), grad).map_err(err)?;
         let h = PyDict::new(py);
         h.set_item("rows", Array1::from(rows_).into_pyarray(py))?;
         h.set_item("cols", Array1::from(cols).into_pyarray(py))?;

@@ -479,4 +479,4 @@ class SceneSpec(_Spec):
         ``base_dir``); :class:`femp.SceneError` names a bad field by its attribute path."""
         from . import Scene
 
-        return Scene.from_dict(self.to_dict(), base_dir, self.name or "scene")
+        return Scene.from_spec(self, base_dir)
