@@ -12,7 +12,14 @@
 //! cargo xtask bench --friction-update-below 0 0.01   # friction between solves / in Newton too
 //! cargo xtask bench --newton-test nodes points         # Newton's test on grid nodes / particles
 //! cargo xtask bench --set solver.reuse_hessian_below=0,0.1,1   # any scene field, each value
+//! cargo xtask bench --only twist --steps 1 --trace twist.csv   # every Newton iteration
 //! ```
+//!
+//! `--trace FILE` writes one CSV row per Newton iteration of the measured steps (every case and
+//! variant): its solve within the step, the convergence test's increment, the unknown with the
+//! largest increment (grid node or FEM vertex, its mass), whether the Hessian was the exact
+//! one, `gᵀp`, the feasible-step bound and what set it, the step length, the line search's
+//! halvings and the energy change — where a step's iterations go, in a file to plot.
 //!
 //! `--set KEY=V1,V2,…` (repeatable) sets a field of the scene file by its dotted path (array
 //! elements by index: `contact.pairs.0.kappa`) to each value in turn, parsed as JSON (a bare
@@ -57,7 +64,12 @@ const CASES: [Case; 2] = [
 
 const USAGE: &str = "usage: cargo xtask bench [--only plate|twist …] [--steps N] \
                      [--ordering auto|amd|nested_dissection …] [--friction-update-below V …] \
-                     [--newton-test nodes|points …] [--set KEY=V1,V2,… …]";
+                     [--newton-test nodes|points …] [--set KEY=V1,V2,… …] [--trace FILE]";
+
+/// The header of `--trace`'s CSV.
+const TRACE_HEADER: &str = "case,ordering,set,step,solve,iteration,increment,largest_on,\
+                            index,body,axis,mass,largest_increment,exact,reused,gtp,bound,\
+                            bound_by,alpha,backtracks,energy_change";
 
 /// Entry point (arguments after `bench`).
 pub fn main(args: &[String]) -> Result<()> {
@@ -67,6 +79,7 @@ pub fn main(args: &[String]) -> Result<()> {
     let mut below: Vec<f64> = Vec::new();
     let mut tests: Vec<NewtonTestSpec> = Vec::new();
     let mut sets: Vec<(String, Vec<serde_json::Value>)> = Vec::new();
+    let mut trace_file: Option<std::path::PathBuf> = None;
     let mut it = args.iter().peekable();
     while let Some(a) = it.next() {
         match a.as_str() {
@@ -127,6 +140,9 @@ pub fn main(args: &[String]) -> Result<()> {
                     .collect();
                 sets.push((key.to_string(), values));
             }
+            "--trace" => {
+                trace_file = Some(it.next().context(USAGE)?.into());
+            }
             "-h" | "--help" => {
                 println!("{USAGE}");
                 return Ok(());
@@ -143,6 +159,7 @@ pub fn main(args: &[String]) -> Result<()> {
     );
     println!("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|");
     let combinations = combinations(&sets);
+    let mut trace = trace_file.as_ref().map(|_| vec![TRACE_HEADER.to_string()]);
     for case in CASES
         .iter()
         .filter(|c| only.is_empty() || only.iter().any(|o| o == c.name))
@@ -156,13 +173,68 @@ pub fn main(args: &[String]) -> Result<()> {
                             case,
                             (ordering, b, t, set),
                             steps.unwrap_or(case.steps),
+                            trace.as_mut(),
                         )?;
                     }
                 }
             }
         }
     }
+    if let (Some(file), Some(rows)) = (trace_file, trace) {
+        let mut text = rows.join("\n");
+        text.push('\n');
+        std::fs::write(&file, text).with_context(|| format!("writing {}", file.display()))?;
+        println!(
+            "\n{} Newton iterations traced in {}",
+            rows.len() - 1,
+            file.display()
+        );
+    }
     Ok(())
+}
+
+/// `--trace`'s rows for one measured step: one per Newton iteration.
+fn trace_rows(
+    (case, ordering, set, step): (&str, OrderingSpec, &str, usize),
+    r: &femp::StepReport,
+    rows: &mut Vec<String>,
+) {
+    let mut solve = 0;
+    for (rec, on) in r.stats.trace.iter().zip(&r.largest_increments) {
+        if rec.iteration == 1 {
+            solve += 1;
+        }
+        let (kind, index, body, axis, mass) = match *on {
+            femp::Unknown::GridNode { node, axis, mass } => {
+                ("grid", node, String::new(), axis, mass)
+            }
+            femp::Unknown::FemVertex {
+                body,
+                vertex,
+                axis,
+                mass,
+            } => ("fem", vertex, body.to_string(), axis, mass),
+        };
+        let limit = match rec.bound.1 {
+            None => "",
+            Some(femp::StepLimit::Ccd) => "ccd",
+            Some(femp::StepLimit::DetF) => "det_f",
+            Some(femp::StepLimit::Other) => "other",
+        };
+        rows.push(format!(
+            "{case},{ordering:?},\"{set}\",{step},{solve},{},{:e},{kind},{index},{body},{axis},{mass:e},{:e},{},{},{:e},{:e},{limit},{:e},{},{:e}",
+            rec.iteration,
+            rec.increment,
+            rec.largest.1,
+            rec.exact,
+            rec.reused,
+            rec.predicted,
+            rec.bound.0,
+            rec.alpha,
+            rec.backtracks,
+            rec.change,
+        ));
+    }
 }
 
 /// Each value asked for, or `None` (the scene's own setting) if none was.
@@ -235,6 +307,7 @@ fn run_case(
     case: &Case,
     (ordering, below, test, set): (OrderingSpec, Option<f64>, Option<NewtonTestSpec>, &Settings),
     steps: usize,
+    mut trace: Option<&mut Vec<String>>,
 ) -> Result<()> {
     let dir = root.join("fixtures/scenes");
     let s = scene_with(&dir.join(case.file), set)?;
@@ -258,6 +331,7 @@ fn run_case(
     for _ in 0..case.warm {
         world.step()?;
     }
+    world.record_newton_iterations(trace.is_some());
     let (mut newton, mut wall) = (0usize, 0.0f64);
     for _ in 0..steps {
         let clock = Instant::now();
@@ -265,6 +339,9 @@ fn run_case(
         let w = clock.elapsed().as_secs_f64();
         newton += r.newton_iterations;
         wall += w;
+        if let Some(rows) = trace.as_deref_mut() {
+            trace_rows((case.name, ordering, &set, world.clock.step), &r, rows);
+        }
         let st = &r.stats;
         println!(
             "| {} | {:?} | {below} | {test:?} | {set} | {} | {:.3} | {} | {} | {} | {} | {} | {w:.2} | {:.2} | {:.2} | {:.2} | {:.2} | {:.2} |",

@@ -51,6 +51,8 @@ pub mod sweep;
 pub mod world;
 
 pub use error::SimError;
+/// The solver's per-iteration record and step limits, as [`StepReport`] carries them.
+pub use femp_solver::{IterationRecord, StepLimit};
 pub use io::{metrics, output, render};
-pub use report::StepReport;
+pub use report::{StepReport, Unknown};
 pub use world::World;

@@ -3,6 +3,32 @@
 
 use femp_solver::SolveStats;
 
+/// The unknown that carried a Newton iteration's largest increment
+/// ([`StepReport::largest_increments`]), with its mass in the step's inertia.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Unknown {
+    /// A grid node's velocity component (`axis`), `node` in the step's active-node order.
+    GridNode {
+        /// The node's index among the step's active nodes.
+        node: usize,
+        /// The component.
+        axis: usize,
+        /// The node's mass (kg; kg/m in 2D).
+        mass: f64,
+    },
+    /// A FEM vertex's component (`body` among the scene's FEM bodies, in scene order).
+    FemVertex {
+        /// The FEM body.
+        body: usize,
+        /// The vertex.
+        vertex: usize,
+        /// The component.
+        axis: usize,
+        /// The vertex's lumped mass.
+        mass: f64,
+    },
+}
+
 /// What a step did.
 #[derive(Clone, Debug)]
 pub struct StepReport {
@@ -41,6 +67,9 @@ pub struct StepReport {
     /// Substeps the step was solved in (1 unless a point's straight path passed through a
     /// body: [`crate::World::step`]).
     pub substeps: usize,
+    /// With [`crate::World::record_newton_iterations`]: per record of `stats.trace`, the
+    /// unknown its largest increment sat on (empty otherwise).
+    pub largest_increments: Vec<Unknown>,
 }
 
 impl StepReport {
@@ -56,6 +85,8 @@ impl StepReport {
             self.retried.clone_from(&o.retried);
         }
         self.stats += &o.stats;
+        self.largest_increments
+            .extend_from_slice(&o.largest_increments);
         self.transfers_s += o.transfers_s;
         self.setup_s += o.setup_s;
         self.objective.add(&o.objective);
@@ -89,6 +120,7 @@ impl Default for StepReport {
             pair_forces: Vec::new(),
             swept: Default::default(),
             substeps: 1,
+            largest_increments: Vec::new(),
         }
     }
 }

@@ -13,7 +13,7 @@ use crate::bodies::{Bodies, Transfer};
 use crate::clock::Clock;
 use crate::error::SimError;
 use crate::objective::{Dofs, Inertia, Penalty, StepObjective};
-use crate::report::StepReport;
+use crate::report::{StepReport, Unknown};
 use crate::scene::spec::{LinearSpec, NewtonTestSpec, OrderingSpec, ProjectionSpec, SolverSpec};
 use crate::scene::{BoundaryCondition, IntegratorSpec, Scene};
 
@@ -252,6 +252,12 @@ impl Bfemp {
         );
         report.objective.add(&obj.timing);
         drop(obj);
+        report.largest_increments = report
+            .stats
+            .trace
+            .iter()
+            .map(|r| s.unknown(r.largest.0))
+            .collect();
         if let Some(m) = w.bodies.mpm.as_mut() {
             m.contact_force = outcome.on_particles;
         }
@@ -1112,6 +1118,25 @@ fn start_at_predictor<const D: usize>(
 }
 
 impl<const D: usize> StepSetup<D> {
+    /// What unknown `dof` is: a grid node's or a FEM vertex's component, with its mass.
+    pub(crate) fn unknown(&self, dof: usize) -> Unknown {
+        let (node_or_vertex, axis) = (dof / D, dof % D);
+        let mass = self.mass.get(dof).copied().unwrap_or(f64::NAN);
+        match self.fem_offset.iter().rposition(|&o| o <= dof) {
+            Some(body) if dof >= self.n_grid * D => Unknown::FemVertex {
+                body,
+                vertex: (dof - self.fem_offset[body]) / D,
+                axis,
+                mass,
+            },
+            _ => Unknown::GridNode {
+                node: node_or_vertex,
+                axis,
+                mass,
+            },
+        }
+    }
+
     /// The unknowns' layout.
     pub(crate) fn dofs(&self) -> Dofs {
         Dofs {

@@ -116,6 +116,17 @@ impl<const D: usize> Stepper<D> {
         }
     }
 
+    /// Whether BFEMP's Newton solvers record every iteration ([`crate::World::record_newton_iterations`]);
+    /// `false` for augury (no Newton solve).
+    pub(crate) fn record_newton_iterations(&mut self, on: bool) -> bool {
+        if let Stepper::Bfemp(b) = self {
+            b.newton.record_iterations(on);
+            b.projection.record_iterations(on);
+            return true;
+        }
+        false
+    }
+
     /// Hand the interrupt flag to what checks it during a step (BFEMP's Newton solvers).
     pub(crate) fn set_interrupt(&mut self, flag: Option<Arc<AtomicBool>>) {
         if let Stepper::Bfemp(b) = self {

@@ -187,6 +187,18 @@ impl<const D: usize> World<D> {
         self.stepper.sweep(&self.bodies, before)
     }
 
+    /// Record every Newton iteration of the steps that follow (`on`) or stop recording: each
+    /// step's [`StepReport`](crate::StepReport) then carries one
+    /// [`IterationRecord`](femp_solver::IterationRecord) per iteration in `stats.trace` (the
+    /// increment, the step length and what limited it, the predicted and actual energy
+    /// change) and, in `largest_increments`, the unknown — grid node or FEM vertex, with its
+    /// mass — that carried the iteration's largest increment. For diagnosing where a step's
+    /// iterations go (`cargo xtask bench --trace`). Returns `false` for an augury world, which
+    /// has no Newton solve.
+    pub fn record_newton_iterations(&mut self, on: bool) -> bool {
+        self.stepper.record_newton_iterations(on)
+    }
+
     /// A flag that stops the run: once set (by a signal handler, say), [`World::step`] returns
     /// [`SimError::Interrupted`] before its next Newton iteration, so a step that never
     /// converges can still be stopped. An augury step is a bounded amount of explicit work and

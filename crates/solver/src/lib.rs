@@ -40,8 +40,8 @@ pub use error::SolveError;
 pub use integrator::Integrator;
 pub use linear::{Cholesky, FACTOR_TASKS, LinearError, LinearStats, Ordering, Threads};
 pub use newton::{
-    Forcing, HessianStrategy, LinearSolver, Newton, NewtonParams, Objective, SolveStats, StepBound,
-    StepLimit,
+    Forcing, HessianStrategy, IterationRecord, LinearSolver, Newton, NewtonParams, Objective,
+    SolveStats, StepBound, StepLimit,
 };
 pub use pcg::{Pcg, PcgOutcome};
 pub use sparse::{Triplets, UpperCsc};

@@ -1543,6 +1543,21 @@ fn cholesky_gives_the_same_bits_on_any_number_of_threads() {
     assert_ne!(bits(&on(2, Threads::Rayon)), bits(&on(3, Threads::Rayon)));
 }
 
+fn record(iteration: usize) -> femp_solver::IterationRecord {
+    femp_solver::IterationRecord {
+        iteration,
+        increment: 1.0,
+        largest: (0, 1.0),
+        exact: false,
+        reused: false,
+        predicted: -1.0,
+        bound: (1.0, None),
+        alpha: 1.0,
+        backtracks: 0,
+        change: -0.5,
+    }
+}
+
 /// Statistics of consecutive solves add up field by field (the last solve's residual and energy
 /// are kept). Every field is named, so a new one must be added here — and to `AddAssign`.
 #[test]
@@ -1572,11 +1587,14 @@ fn solve_statistics_add_up() {
         numeric_s: k as f64,
         solve_s: k as f64,
         line_search_s: k as f64,
+        trace: (1..=k).map(record).collect(),
     };
     let mut acc = stats(1);
     acc += &stats(2);
     let mut expect = stats(3);
     (expect.final_residual, expect.final_energy) = (2.0, 2.0);
+    // The records are appended: the second solve's start again at iteration 1.
+    expect.trace = vec![record(1), record(1), record(2)];
     assert_eq!(acc, expect);
 }
 
@@ -1669,4 +1687,100 @@ fn lagged_terms_updated_in_the_iterations_reach_their_fixed_point() {
     assert_eq!(stats.lagged_updates, lagged.updates);
     assert_eq!(stats.lagged_updates, stats.iterations - 1);
     assert!(stats.iterations > 20, "{stats:?}");
+}
+
+/// `E = √(1 + x₀²) + ½x₁²`: Newton's step on the first term overshoots (from `x₀ = 2`, `p₀ =
+/// −x₀(1 + x₀²) = −10`), and a bound limits the first step to half of it.
+struct Overshoot;
+impl Objective for Overshoot {
+    fn num_dofs(&self) -> usize {
+        2
+    }
+    fn energy(&mut self, x: &[f64]) -> f64 {
+        (1.0 + x[0] * x[0]).sqrt() + 0.5 * x[1] * x[1]
+    }
+    fn gradient(&mut self, x: &[f64], g: &mut [f64]) {
+        g[0] = x[0] / (1.0 + x[0] * x[0]).sqrt();
+        g[1] = x[1];
+    }
+    fn hessian(&mut self, x: &[f64], h: &mut Triplets) {
+        h.extend([(0, 0, (1.0 + x[0] * x[0]).powf(-1.5)), (1, 1, 1.0)]);
+    }
+    fn max_step(&mut self, x: &[f64], _p: &[f64]) -> StepBound {
+        if x[0] == 2.0 {
+            StepBound {
+                alpha: 0.5,
+                limit: Some(StepLimit::Ccd),
+            }
+        } else {
+            StepBound::UNLIMITED
+        }
+    }
+}
+
+#[test]
+fn recorded_iterations_say_what_each_newton_iteration_did() {
+    let params = NewtonParams {
+        tolerance: 1e-10,
+        dt: 0.5,
+        ..Default::default()
+    };
+    let x0 = [2.0, 1.0];
+    let mut plain = x0;
+    let quiet = Newton::new()
+        .minimize(&mut Overshoot, &mut plain, &[false; 2], &params)
+        .unwrap();
+    assert!(quiet.trace.is_empty(), "recorded without being asked");
+
+    let mut newton = Newton::new();
+    newton.record_iterations(true);
+    let mut x = x0;
+    let stats = newton
+        .minimize(&mut Overshoot, &mut x, &[false; 2], &params)
+        .unwrap();
+    // Recording changes nothing about the solve.
+    assert_eq!(x, plain);
+    assert_eq!(stats.iterations, quiet.iterations);
+    assert_eq!(stats.trace.len(), stats.iterations);
+    for (i, r) in stats.trace.iter().enumerate() {
+        assert_eq!(r.iteration, i + 1);
+        // The default test measures ‖p‖∞ / Δt: the largest increment itself.
+        assert_eq!(r.increment, r.largest.1, "{r:?}");
+        assert!(!r.exact && !r.reused);
+        if i + 1 < stats.iterations {
+            assert!(r.alpha > 0.0 && r.alpha <= 1.0 && r.change <= 0.0, "{r:?}");
+        }
+    }
+    // The last iteration passed the test; a step below round-off is not taken (α = 0, no
+    // energy change) or is.
+    let last = stats.trace.last().unwrap();
+    assert!(last.increment < params.tolerance, "{last:?}");
+    assert!(
+        (last.alpha == 0.0 && last.change.is_nan()) || last.change <= 0.0,
+        "{last:?}"
+    );
+    // The first iteration: p = (−10, −1), bounded at half of it by CCD, cut to 0.9 · 0.5 =
+    // 0.45 (x₀ = −2.5: the energy rises) and once more to 0.225 (x₀ = −0.25).
+    let first = stats.trace[0];
+    assert_eq!(first.largest.0, 0);
+    assert!((first.largest.1 - 10.0 / 0.5).abs() < 1e-12, "{first:?}");
+    assert_eq!(first.bound, (0.5, Some(StepLimit::Ccd)));
+    assert_eq!((first.alpha, first.backtracks), (0.225, 1));
+    let predicted = -10.0 * 2.0 / 5f64.sqrt() - 1.0;
+    assert!((first.predicted - predicted).abs() < 1e-12, "{first:?}");
+    let e = |x: [f64; 2]| Overshoot.energy(&x);
+    let after = [2.0 - 0.225 * 10.0, 1.0 - 0.225];
+    assert!(
+        (first.change - (e(after) - e(x0))).abs() < 1e-12,
+        "{first:?}"
+    );
+    // The energy changes add up to the solve's.
+    let total: f64 = stats
+        .trace
+        .iter()
+        .filter(|r| r.alpha > 0.0)
+        .map(|r| r.change)
+        .sum();
+    assert!((total - (e(x) - e(x0))).abs() < 1e-12);
+    assert_eq!(last.bound, (1.0, None));
 }

@@ -620,3 +620,50 @@ fn a_step_whose_solve_fails_is_solved_again_with_the_other_projection() {
         "{err}"
     );
 }
+
+/// `World::record_newton_iterations`: every Newton iteration of a step is recorded, with the
+/// unknown its largest increment sat on — grid nodes with their mass, FEM vertices with their
+/// body's lumped mass — and recording stops when asked.
+#[test]
+fn recorded_newton_iterations_name_the_unknown_of_the_largest_increment() {
+    // The plate is free here, so both kinds of unknown move.
+    let json = block_on_plate(0.01, 1.0).replace(
+        r#", "prescribed": [ { "vertices": "all", "motion": [] } ]"#,
+        "",
+    );
+    assert!(!json.contains("prescribed"));
+    let s = scene::parse(&json, "t.json", ".".into(), "t").unwrap();
+    let mut w = femp::World::<2>::build(s).unwrap();
+    assert!(w.record_newton_iterations(true));
+    let (mut grid, mut fem) = (0, 0);
+    for _ in 0..5 {
+        let r = w.step().unwrap();
+        assert_eq!(r.stats.trace.len(), r.newton_iterations);
+        assert_eq!(r.largest_increments.len(), r.newton_iterations);
+        assert_eq!(r.stats.trace[0].iteration, 1);
+        for (rec, on) in r.stats.trace.iter().zip(&r.largest_increments) {
+            // The default convergence test is the largest increment itself.
+            assert_eq!(rec.increment, rec.largest.1, "{rec:?}");
+            match *on {
+                femp::Unknown::GridNode { axis, mass, .. } => {
+                    assert!(axis < 2 && mass > 0.0, "{on:?}");
+                    grid += 1;
+                }
+                femp::Unknown::FemVertex {
+                    body,
+                    vertex,
+                    axis,
+                    mass,
+                } => {
+                    assert_eq!((body, axis < 2), (0, true));
+                    assert_eq!(mass, w.bodies.fem[0].mass[vertex], "{on:?}");
+                    fem += 1;
+                }
+            }
+        }
+    }
+    assert!(grid > 0 && fem > 0, "grid {grid}, fem {fem}");
+    w.record_newton_iterations(false);
+    let r = w.step().unwrap();
+    assert!(r.stats.trace.is_empty() && r.largest_increments.is_empty());
+}

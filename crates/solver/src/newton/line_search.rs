@@ -57,6 +57,7 @@ impl Newton {
             accepted,
             alpha,
             full_step_feasible,
+            bound,
         }
     }
 

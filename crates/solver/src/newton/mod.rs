@@ -48,7 +48,7 @@ use crate::{SolveError, Triplets, UpperCsc};
 pub use params::{
     Forcing, HessianStrategy, LinearSolver, NewtonParams, Objective, ROUNDOFF, StepBound, StepLimit,
 };
-pub use stats::SolveStats;
+pub use stats::{IterationRecord, SolveStats};
 
 use params::Problem;
 use policy::forcing_term;
@@ -73,6 +73,8 @@ pub struct Newton {
     sol: Vec<f64>,
     /// Set from elsewhere to stop the solve before its next iteration.
     interrupt: Option<Arc<AtomicBool>>,
+    /// Whether solves record every iteration in [`SolveStats::trace`].
+    record: bool,
 }
 
 /// The Hessian's sparse matrix and its factorisation: what a Newton iteration can hand to
@@ -120,6 +122,7 @@ impl Newton {
             pcg: Pcg::new(),
             sol: Vec::new(),
             interrupt: None,
+            record: false,
         }
     }
 
@@ -128,6 +131,13 @@ impl Newton {
     /// stopped. `None` removes it.
     pub fn set_interrupt(&mut self, flag: Option<Arc<AtomicBool>>) {
         self.interrupt = flag;
+    }
+
+    /// Whether the solves that follow record each Newton iteration ([`IterationRecord`]) in
+    /// their [`SolveStats::trace`] — for diagnosing where a solve's iterations go. Off by
+    /// default; on, it costs a pass over the increment per iteration.
+    pub fn record_iterations(&mut self, on: bool) {
+        self.record = on;
     }
 
     /// Minimise `obj` from `x` (in place). `fixed[dof]` marks Dirichlet DOFs: they keep the
@@ -266,6 +276,7 @@ impl Newton {
         let params = problem.params;
         state.stats.iterations += 1;
         let cg = state.cg.active(params.linear);
+        let reused_before = state.stats.reused_hessians;
         let matrix = self.matrix_and_gradient(state, obj, x, problem, cg.is_some())?;
         let solved = match cg {
             Some(cg) => self.solve_with_cg(state, obj, x, problem, matrix, cg)?,
@@ -288,7 +299,29 @@ impl Newton {
             return Ok(Progress::Done);
         }
 
+        let backtracks = state.stats.backtracks;
         let search = self.line_search(state, obj, x, problem, pmax, gp);
+        if self.record {
+            let (largest, size) = self.p.iter().enumerate().fold((0, 0.0), |(i, m), (j, v)| {
+                if v.abs() > m { (j, v.abs()) } else { (i, m) }
+            });
+            state.stats.trace.push(IterationRecord {
+                iteration: state.stats.iterations,
+                increment: state.stats.final_residual,
+                largest: (largest, size / params.dt),
+                exact: solved.exact,
+                reused: state.stats.reused_hessians > reused_before,
+                predicted: gp,
+                bound: (search.bound.alpha, search.bound.limit),
+                alpha: if search.accepted.is_some() {
+                    search.alpha
+                } else {
+                    0.0
+                },
+                backtracks: state.stats.backtracks - backtracks,
+                change: search.accepted.map_or(f64::NAN, |e| e - state.e),
+            });
+        }
         // Within a few thousand ulps of the energy, a predicted decrease is round-off.
         let within_roundoff = at_targets && -gp <= 1e4 * ROUNDOFF * scale;
         // A backtracked step that leaves the energy exactly unchanged was accepted only

@@ -51,6 +51,8 @@ pub(super) struct LineSearch {
     pub(super) accepted: Option<f64>,
     pub(super) alpha: f64,
     pub(super) full_step_feasible: bool,
+    /// The objective's feasible-step bound along the direction.
+    pub(super) bound: crate::StepBound,
 }
 
 /// The state of one solve: the energy, the statistics and one policy per strategy.

@@ -1,5 +1,7 @@
 //! Statistics of a solve, and of consecutive solves.
 
+use super::params::StepLimit;
+
 /// Statistics of one solve.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct SolveStats {
@@ -61,6 +63,38 @@ pub struct SolveStats {
     pub solve_s: f64,
     /// Seconds in the line search (feasible-step bound and energy evaluations).
     pub line_search_s: f64,
+    /// One record per Newton iteration, oldest first, if the solver was asked for them
+    /// ([`crate::Newton::record_iterations`]); empty otherwise. Summed statistics append the
+    /// records of each solve: a solve's records start at `iteration` 1.
+    pub trace: Vec<IterationRecord>,
+}
+
+/// What one Newton iteration did ([`crate::Newton::record_iterations`]): enough to see where
+/// a solve's iterations go — which unknown carries the largest increment, how far the line
+/// search cut the step and why, and whether the energy fell as the quadratic model predicted.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct IterationRecord {
+    /// The iteration within its solve, from 1.
+    pub iteration: usize,
+    /// The convergence test's increment (velocity units, as the tolerance).
+    pub increment: f64,
+    /// The unknown with the largest `|p|` (free or prescribed) and that `|p| / Δt`.
+    pub largest: (usize, f64),
+    /// Whether the direction came from the exact (unprojected) Hessian.
+    pub exact: bool,
+    /// Whether the direction reused the previous iteration's matrix.
+    pub reused: bool,
+    /// The directional derivative `gᵀp` (the quadratic model's predicted first-order change).
+    pub predicted: f64,
+    /// The objective's feasible-step bound along `p` and what set it (`None`: nothing within
+    /// the full step).
+    pub bound: (f64, Option<StepLimit>),
+    /// The step length taken (0 if the line search found none).
+    pub alpha: f64,
+    /// Halvings in the line search.
+    pub backtracks: usize,
+    /// The energy change of the accepted step (NaN if none was accepted).
+    pub change: f64,
 }
 
 /// Statistics of consecutive solves (the friction loop's re-solves within a step, a run's
@@ -91,5 +125,6 @@ impl std::ops::AddAssign<&SolveStats> for SolveStats {
         self.numeric_s += s.numeric_s;
         self.solve_s += s.solve_s;
         self.line_search_s += s.line_search_s;
+        self.trace.extend_from_slice(&s.trace);
     }
 }
