@@ -1180,12 +1180,21 @@ fn a_search_direction_lost_in_round_off_ends_the_solve_as_stationary() {
         calls: 0,
     };
     let mut x = vec![0.3, 0.0];
-    let stats = Newton::new()
+    let mut newton = Newton::new();
+    newton.record_iterations(true);
+    let stats = newton
         .minimize(&mut obj, &mut x, &[false, false], &params)
         .unwrap();
     assert_eq!(stats.roundoff_stops, 1, "{stats:?}");
     assert!(x[0].abs() < 1e-12, "x₀ = {}", x[0]);
     assert!(stats.iterations < 10, "{stats:?}");
+    // The stopping iteration is recorded too, without a step (it ended before a line search).
+    assert_eq!(stats.trace.len(), stats.iterations, "{stats:?}");
+    let last = stats.trace.last().unwrap();
+    assert!(
+        last.bound.0.is_nan() && last.alpha == 0.0 && last.change.is_nan(),
+        "{last:?}"
+    );
 
     // The same mode with a resolvable energy (η/ε large but −gᵀp well above round-off) is
     // not cut short: it fails with the iteration limit instead.

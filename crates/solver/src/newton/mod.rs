@@ -52,7 +52,7 @@ pub use stats::{IterationRecord, SolveStats};
 
 use params::Problem;
 use policy::forcing_term;
-use state::{Direction, Failure, Matrix, Progress, SolveState, Solved};
+use state::{Direction, Failure, LineSearch, Matrix, Progress, SolveState, Solved};
 
 /// A projected-Newton solver. Keep it across solves: the symbolic factorisation and all
 /// buffers are reused while the Hessian's pattern is unchanged.
@@ -296,32 +296,18 @@ impl Newton {
         let flat = at_targets && -gp <= ROUNDOFF * scale;
         if state.stagnation.stalled(flat && !converged, pmax) {
             state.stats.roundoff_stops += 1;
+            self.record(state, (solved.exact, reused_before, gp, params.dt), None);
             return Ok(Progress::Done);
         }
 
         let backtracks = state.stats.backtracks;
         let search = self.line_search(state, obj, x, problem, pmax, gp);
-        if self.record {
-            let (largest, size) = self.p.iter().enumerate().fold((0, 0.0), |(i, m), (j, v)| {
-                if v.abs() > m { (j, v.abs()) } else { (i, m) }
-            });
-            state.stats.trace.push(IterationRecord {
-                iteration: state.stats.iterations,
-                increment: state.stats.final_residual,
-                largest: (largest, size / params.dt),
-                exact: solved.exact,
-                reused: state.stats.reused_hessians > reused_before,
-                predicted: gp,
-                bound: (search.bound.alpha, search.bound.limit),
-                alpha: if search.accepted.is_some() {
-                    search.alpha
-                } else {
-                    0.0
-                },
-                backtracks: state.stats.backtracks - backtracks,
-                change: search.accepted.map_or(f64::NAN, |e| e - state.e),
-            });
-        }
+        let halvings = state.stats.backtracks - backtracks;
+        self.record(
+            state,
+            (solved.exact, reused_before, gp, params.dt),
+            Some((&search, halvings)),
+        );
         // Within a few thousand ulps of the energy, a predicted decrease is round-off.
         let within_roundoff = at_targets && -gp <= 1e4 * ROUNDOFF * scale;
         // A backtracked step that leaves the energy exactly unchanged was accepted only
@@ -379,6 +365,43 @@ impl Newton {
         } else {
             Progress::Continue
         })
+    }
+
+    /// With [`Newton::record_iterations`], the iteration's [`IterationRecord`] (`search`:
+    /// the line search and its halvings; `None` if the iteration stopped before one).
+    fn record(
+        &self,
+        state: &mut SolveState,
+        (exact, reused_before, gp, dt): (bool, usize, f64, f64),
+        search: Option<(&LineSearch, usize)>,
+    ) {
+        if !self.record {
+            return;
+        }
+        let (largest, size) = self.p.iter().enumerate().fold((0, 0.0), |(i, m), (j, v)| {
+            if v.abs() > m { (j, v.abs()) } else { (i, m) }
+        });
+        let (bound, alpha, backtracks, change) = match search {
+            Some((s, halvings)) => (
+                (s.bound.alpha, s.bound.limit),
+                if s.accepted.is_some() { s.alpha } else { 0.0 },
+                halvings,
+                s.accepted.map_or(f64::NAN, |e| e - state.e),
+            ),
+            None => ((f64::NAN, None), 0.0, 0, f64::NAN),
+        };
+        state.stats.trace.push(IterationRecord {
+            iteration: state.stats.iterations,
+            increment: state.stats.final_residual,
+            largest: (largest, size / dt),
+            exact,
+            reused: state.stats.reused_hessians > reused_before,
+            predicted: gp,
+            bound,
+            alpha,
+            backtracks,
+            change,
+        });
     }
 
     /// The gradient into `g` and the iteration's matrix (CSC, and its factorisation on the

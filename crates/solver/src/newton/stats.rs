@@ -87,7 +87,8 @@ pub struct IterationRecord {
     /// The directional derivative `gᵀp` (the quadratic model's predicted first-order change).
     pub predicted: f64,
     /// The objective's feasible-step bound along `p` and what set it (`None`: nothing within
-    /// the full step).
+    /// the full step); NaN if the iteration ended the solve before a line search (the
+    /// increment stopped shrinking at round-off).
     pub bound: (f64, Option<StepLimit>),
     /// The step length taken (0 if the line search found none).
     pub alpha: f64,
