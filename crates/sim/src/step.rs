@@ -537,6 +537,10 @@ fn newton_params<const D: usize>(solver: &SolverSpec, dt: f64) -> NewtonParams {
                     None => Forcing::Fixed,
                 },
             },
+            LinearSpec::LastFactorCg => LinearSolver::LastFactorCg {
+                rtol: solver.factor_cg_rtol,
+                max_iterations: solver.factor_cg_iterations,
+            },
         },
         reuse_hessian_below: solver.reuse_hessian_below,
         ..Default::default()

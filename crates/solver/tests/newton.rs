@@ -1793,3 +1793,63 @@ fn recorded_iterations_say_what_each_newton_iteration_did() {
     assert!((total - (e(x) - e(x0))).abs() < 1e-12);
     assert_eq!(last.bound, (1.0, None));
 }
+
+/// [`LinearSolver::LastFactorCg`] on the crumpled chain's implicit step (projected Hessians):
+/// the first iteration factorises, the later ones solve their own Hessians by CG preconditioned
+/// with that factor — the same minimiser and Newton iteration count as Cholesky, with fewer
+/// factorisations. With one CG product allowed, CG cannot get there: every such direction is
+/// factorised and solved directly (counted as a fallback), and the solve is Cholesky's.
+#[test]
+fn last_factor_cg_reaches_the_cholesky_step_with_fewer_factorisations() {
+    let n = 20;
+    let solve = |linear: LinearSolver| {
+        let (chain, x0, fixed) = crumpled_chain(n);
+        let mut obj = ChainStep {
+            chain,
+            inertia: 2.0e2,
+            x_hat: x0.iter().map(|v| v * 1.5).collect(),
+        };
+        let mut x = x0.clone();
+        let mut newton = Newton::new();
+        let stats = newton
+            .minimize(
+                &mut obj,
+                &mut x,
+                &fixed,
+                &NewtonParams {
+                    tolerance: 1e-12,
+                    linear,
+                    ..Default::default()
+                },
+            )
+            .unwrap();
+        (x, stats, newton.linear_stats().numeric_count)
+    };
+    let (xc, sc, fc) = solve(LinearSolver::Cholesky);
+    let (xg, sg, fg) = solve(LinearSolver::LastFactorCg {
+        rtol: 1e-10,
+        max_iterations: 40,
+    });
+    assert!(sc.iterations >= 3, "{sc:?}");
+    for (a, b) in xc.iter().zip(&xg) {
+        assert!((a - b).abs() < 1e-10, "{a} vs {b}");
+    }
+    assert_eq!(sg.iterations, sc.iterations, "{sg:?} vs {sc:?}");
+    assert_eq!(fc, sc.iterations);
+    // The first iteration's factorisation, fallbacks and refreshes after long CG solves: here
+    // a tenth of Cholesky's.
+    assert!(
+        10 * fg <= fc && fg > sg.pcg_fallbacks && sg.pcg_iterations > 0,
+        "{fg} of {fc}: {sg:?}"
+    );
+
+    let (x1, s1, f1) = solve(LinearSolver::LastFactorCg {
+        rtol: 1e-14,
+        max_iterations: 1,
+    });
+    for (a, b) in xc.iter().zip(&x1) {
+        assert!((a - b).abs() < 1e-10, "{a} vs {b}");
+    }
+    assert_eq!(f1, fc, "{s1:?}");
+    assert_eq!(s1.pcg_fallbacks, s1.iterations - 1, "{s1:?}");
+}

@@ -101,6 +101,8 @@ class Solver(_Spec):
     linear: Optional[str] = None
     pcg_rtol: Optional[float] = None
     pcg_max_iterations: Optional[int] = None
+    factor_cg_rtol: Optional[float] = None
+    factor_cg_iterations: Optional[int] = None
     pcg_rtol_max: Optional[float] = None
     reuse_hessian_below: Optional[float] = None
     friction_update_below: Optional[float] = None

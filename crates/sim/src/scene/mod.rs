@@ -758,6 +758,21 @@ fn solver(solver: &SolverSpec) -> Result<(), SimError> {
             ),
         ));
     }
+    if !(solver.factor_cg_rtol > 0.0 && solver.factor_cg_rtol < 1.0) {
+        return Err(invalid(
+            "solver.factor_cg_rtol",
+            format!("{} must be in (0, 1)", solver.factor_cg_rtol),
+        ));
+    }
+    if !(1..=MAX_PCG_ITERATIONS).contains(&solver.factor_cg_iterations) {
+        return Err(invalid(
+            "solver.factor_cg_iterations",
+            format!(
+                "{} must be from 1 to {MAX_PCG_ITERATIONS}",
+                solver.factor_cg_iterations
+            ),
+        ));
+    }
     if let Some(max) = solver.pcg_rtol_max
         && !(max >= solver.pcg_rtol && max < 1.0)
     {

@@ -225,6 +225,11 @@ pub struct SolverSpec {
     pub pcg_rtol: f64,
     /// With `linear: "pcg"`: CG iterations before falling back to Cholesky.
     pub pcg_max_iterations: usize,
+    /// With `linear: "last_factor_cg"`: relative reduction of CG's residual preconditioned
+    /// with the last factor.
+    pub factor_cg_rtol: f64,
+    /// With `linear: "last_factor_cg"`: CG iterations before the matrix is factorised.
+    pub factor_cg_iterations: usize,
     /// With `linear: "pcg"`: the largest relative reduction an iteration asks of CG, the
     /// Eisenstat–Walker forcing term choosing between it and `pcg_rtol` (`None`: every
     /// iteration to `pcg_rtol`).
@@ -293,6 +298,9 @@ pub enum LinearSpec {
     Cholesky,
     /// Jacobi-preconditioned conjugate gradients, Cholesky when CG cannot.
     Pcg,
+    /// Cholesky once a solve, then CG preconditioned with the last factor (factorising again
+    /// when CG needs too many iterations).
+    LastFactorCg,
 }
 
 /// When the Newton iterations PSD-project the Hessian (`solver.projection`).
@@ -317,6 +325,8 @@ impl Default for SolverSpec {
             linear: LinearSpec::Cholesky,
             pcg_rtol: 1e-6,
             pcg_max_iterations: 200,
+            factor_cg_rtol: 1e-3,
+            factor_cg_iterations: 16,
             pcg_rtol_max: None,
             reuse_hessian_below: 0.0,
             friction_update_below: 0.0,

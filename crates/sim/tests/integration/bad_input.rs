@@ -81,7 +81,10 @@ fn unknown_fields_are_named_with_their_path() {
 
     let mut v = base();
     v["solver"] = json!({ "linear": "lu" });
-    expect_error(&v, &["solver.linear", "lu", "`cholesky` or `pcg`"]);
+    expect_error(
+        &v,
+        &["solver.linear", "lu", "`cholesky`, `pcg`, `last_factor_cg`"],
+    );
 }
 
 #[test]
@@ -141,6 +144,13 @@ fn non_physical_values_are_named() {
     expect_error(
         &v,
         &["solver.pcg_max_iterations", "must be from 1 to 100000"],
+    );
+    v["solver"] = json!({ "linear": "last_factor_cg", "factor_cg_rtol": 0.0 });
+    expect_error(&v, &["solver.factor_cg_rtol: 0 must be in (0, 1)"]);
+    v["solver"] = json!({ "linear": "last_factor_cg", "factor_cg_iterations": 0 });
+    expect_error(
+        &v,
+        &["solver.factor_cg_iterations", "must be from 1 to 100000"],
     );
     let mut v: Value = serde_json::from_str(
         &std::fs::read_to_string(

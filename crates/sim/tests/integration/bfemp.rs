@@ -373,6 +373,15 @@ fn slope_sticks_and_slides_with_inexact_friction_solves() {
     check_slope_with(3, extra);
 }
 
+/// The same accelerations with later Newton iterations solved by CG preconditioned with the
+/// last factorisation (`solver.linear: "last_factor_cg"`).
+#[test]
+fn slope_sticks_and_slides_with_directions_from_the_last_factor() {
+    let extra = r#", "linear": "last_factor_cg""#;
+    check_slope_with(2, extra);
+    check_slope_with(3, extra);
+}
+
 /// A 2D MPM block thrown down and sideways onto a fixed FEM plate with friction μ = 0.5, for
 /// `duration` s, with the given `solver` fields.
 fn sliding_block_2d(duration: f64, solver: &str) -> String {

@@ -75,6 +75,22 @@ pub struct Newton {
     interrupt: Option<Arc<AtomicBool>>,
     /// Whether solves record every iteration in [`SolveStats::trace`].
     record: bool,
+    /// A factorisation of this solve's matrix size is held ([`LinearSolver::LastFactorCg`]
+    /// may precondition with it).
+    factor_ready: bool,
+    /// [`LinearSolver::LastFactorCg`]'s vectors, kept across iterations.
+    factor_cg: FactorCg,
+}
+
+/// The vectors of CG preconditioned with the last factorisation.
+#[derive(Default)]
+struct FactorCg {
+    x: Vec<f64>,
+    r: Vec<f64>,
+    z: Vec<f64>,
+    d: Vec<f64>,
+    q: Vec<f64>,
+    parts: Vec<Vec<f64>>,
 }
 
 /// The Hessian's sparse matrix and its factorisation: what a Newton iteration can hand to
@@ -89,6 +105,8 @@ struct Linear {
     analysed_in_solve: bool,
     /// Seconds building the CSC matrix (counted as assembly).
     csc_s: f64,
+    /// Whether a build changed the pattern since `assemble` last made sure it is analysed.
+    unanalysed: bool,
 }
 
 impl Default for Newton {
@@ -108,6 +126,7 @@ impl Newton {
                 analysed_row_idx: Vec::new(),
                 analysed_in_solve: false,
                 csc_s: 0.0,
+                unanalysed: false,
             },
             triplets: Triplets::default(),
             ordering: Ordering::Auto,
@@ -123,6 +142,8 @@ impl Newton {
             sol: Vec::new(),
             interrupt: None,
             record: false,
+            factor_ready: false,
+            factor_cg: FactorCg::default(),
         }
     }
 
@@ -217,6 +238,7 @@ impl Newton {
         }
         self.lin.chol.set_dof_map(&self.free_dofs);
         self.lin.analysed_in_solve = false;
+        self.factor_ready = false;
         let nf = self.free_dofs.len();
         self.g.resize(n, 0.0);
         self.p.resize(n, 0.0);
@@ -454,6 +476,13 @@ impl Newton {
             }
         };
         let hessian_s = t.elapsed().as_secs_f64();
+        // CG preconditioned with the last factor: for a projected Hessian, once this solve
+        // has a factor.
+        let last_factor = reuse.is_none()
+            && !cg
+            && !exact
+            && self.factor_ready
+            && matches!(problem.params.linear, LinearSolver::LastFactorCg { .. });
         let mut factor_result = None;
         let mut gradient_s = 0.0;
         if reuse.is_some() {
@@ -464,8 +493,9 @@ impl Newton {
             // projected one after a rejection is factorised afterwards.
             let (lin, triplets, free) = (&mut self.lin, &self.triplets, &self.free);
             let g = &mut self.g;
+            let only_build = cg || last_factor;
             let mut factor = move || {
-                if cg {
+                if only_build {
                     // CG needs the matrix only.
                     lin.build(triplets, free, nf);
                     return Ok(true);
@@ -505,7 +535,14 @@ impl Newton {
         let factorized = factor_result
             .expect("the factorisation ran")
             .map_err(Failure::Linear)?;
-        Ok(Matrix { exact, factorized })
+        if factorized && !cg && !last_factor {
+            self.factor_ready = true;
+        }
+        Ok(Matrix {
+            exact,
+            factorized,
+            last_factor,
+        })
     }
 
     /// The free part of the direction into `rhs` by conjugate gradients on the built matrix.
@@ -525,6 +562,7 @@ impl Newton {
         let Matrix {
             exact,
             mut factorized,
+            ..
         } = matrix;
         let nf = self.free_dofs.len();
         let eta = match forcing {
@@ -637,7 +675,36 @@ impl Newton {
         problem: &Problem,
         matrix: Matrix,
     ) -> Result<Solved, Failure> {
-        let Matrix { exact, factorized } = matrix;
+        let Matrix {
+            exact,
+            factorized,
+            last_factor,
+        } = matrix;
+        if last_factor {
+            let LinearSolver::LastFactorCg {
+                rtol,
+                max_iterations,
+            } = problem.params.linear
+            else {
+                unreachable!("a last-factor matrix without LastFactorCg");
+            };
+            self.prescribed_part(problem.fixed, problem.target, x);
+            if !self.last_factor_cg(state, rtol, max_iterations) {
+                // Factorise this matrix (its pattern analysed first) and solve directly;
+                // `rhs` still holds the right-hand side.
+                state.stats.pcg_fallbacks += 1;
+                self.lin
+                    .ensure_analysed()
+                    .and_then(|()| self.lin.chol.factorize(&mut self.lin.csc))
+                    .map_err(Failure::Linear)?;
+                self.factor_ready = true;
+                self.lin.chol.solve_in_place(&mut self.rhs);
+            }
+            return Ok(Solved {
+                exact: false,
+                loose: false,
+            });
+        }
         if exact {
             if factorized {
                 state.exact.accepted(&mut state.stats);
@@ -656,6 +723,7 @@ impl Newton {
                 .and_then(|()| self.lin.chol.factorize(&mut self.lin.csc));
             state.stats.assembly_s += std::mem::take(&mut self.lin.csc_s);
             result.map_err(Failure::Linear)?;
+            self.factor_ready = true;
         }
         self.prescribed_part(problem.fixed, problem.target, x);
         if !self.free_dofs.is_empty() {
@@ -724,6 +792,77 @@ impl Newton {
         }
     }
 
+    /// [`LinearSolver::LastFactorCg`]: `rhs` solved with the built matrix by CG preconditioned
+    /// with the last factorisation, from 0, until `√(rᵀM⁻¹r)` has fallen by `rtol`; the solution
+    /// replaces `rhs` if it got there within `max_iterations` products (`false`, `rhs`
+    /// unchanged, if not or on non-positive curvature). Needing more than half of them marks
+    /// the factor stale: the next iteration factorises.
+    fn last_factor_cg(&mut self, state: &mut SolveState, rtol: f64, max_iterations: usize) -> bool {
+        let t = Instant::now();
+        let n = self.rhs.len();
+        let FactorCg {
+            x,
+            r,
+            z,
+            d,
+            q,
+            parts,
+        } = &mut self.factor_cg;
+        for v in [&mut *x, &mut *r, &mut *z, &mut *d, &mut *q] {
+            v.clear();
+            v.resize(n, 0.0);
+        }
+        let dot = |a: &[f64], b: &[f64]| a.iter().zip(b).map(|(a, b)| a * b).sum::<f64>();
+        r.copy_from_slice(&self.rhs);
+        z.copy_from_slice(r);
+        self.lin.chol.solve_in_place(z);
+        d.copy_from_slice(z);
+        let mut rz = dot(r, z);
+        if !(rz >= 0.0 && rz.is_finite()) {
+            // The factor cannot precondition this right-hand side: factorise.
+            self.factor_ready = false;
+            return false;
+        }
+        let target = rtol * rtol * rz;
+        // A zero right-hand side: p = 0.
+        let mut converged = rz == 0.0;
+        let mut iterations = 0;
+        while !converged && iterations < max_iterations {
+            iterations += 1;
+            self.lin.csc.mul_symmetric(d, q, parts);
+            let dq = dot(d, q);
+            if !(dq > 0.0 && dq.is_finite()) {
+                break;
+            }
+            let alpha = rz / dq;
+            for i in 0..n {
+                x[i] += alpha * d[i];
+                r[i] -= alpha * q[i];
+            }
+            z.copy_from_slice(r);
+            self.lin.chol.solve_in_place(z);
+            let next = dot(r, z);
+            if next <= target {
+                converged = true;
+                break;
+            }
+            let beta = next / rz;
+            rz = next;
+            for i in 0..n {
+                d[i] = z[i] + beta * d[i];
+            }
+        }
+        if converged {
+            self.rhs.copy_from_slice(x);
+        }
+        if 2 * iterations > max_iterations || !converged {
+            self.factor_ready = false;
+        }
+        state.stats.pcg_iterations += iterations;
+        state.stats.pcg_s += t.elapsed().as_secs_f64();
+        converged
+    }
+
     /// Statistics of the linear algebra since this solver was created.
     pub fn linear_stats(&self) -> crate::linear::LinearStats {
         self.lin.chol.stats
@@ -736,6 +875,7 @@ impl Linear {
         let t = Instant::now();
         let changed = self.csc.assemble(triplets, free, nf);
         self.csc_s += t.elapsed().as_secs_f64();
+        self.unanalysed |= changed;
         changed
     }
 
@@ -766,8 +906,10 @@ impl Linear {
         free: &[u32],
         nf: usize,
     ) -> Result<(), LinearError> {
-        let changed = self.build(triplets, free, nf);
-        if changed || !self.chol.is_analyzed() {
+        self.build(triplets, free, nf);
+        // The pattern may have changed in a build that was not factorised (a CG iteration)
+        // even if this one equals it.
+        if std::mem::take(&mut self.unanalysed) || !self.chol.is_analyzed() {
             // A pattern the analysed one contains is factorised with it (explicit zeros). Within
             // a solve the next analysis covers the union of the patterns met so far, so a
             // contact coupling that comes and goes over the iterations costs one analysis, not

@@ -129,6 +129,23 @@ pub enum LinearSolver {
         /// How `rtol` is chosen per iteration.
         forcing: Forcing,
     },
+    /// Sparse Cholesky, reused as a preconditioner: a solve's first iteration factorises its
+    /// Hessian; each later iteration with a projected Hessian solves its own (new) matrix by
+    /// conjugate gradients preconditioned with the last factor, from `p = 0`, until the
+    /// preconditioned residual `√(rᵀM⁻¹r)` has fallen by `rtol`. If CG has not got there in
+    /// `max_iterations` products (or meets non-positive curvature), the matrix is factorised
+    /// and solved directly; if it needed more than half of them, the next iteration
+    /// factorises. The directions are Newton's to `rtol` — the iteration counts are those of
+    /// [`LinearSolver::Cholesky`] — at the price of a triangular solve and a product per CG
+    /// iteration instead of a factorisation: for large 3D systems, whose factorisations cost
+    /// tens of triangular solves. Exact Hessians ([`HessianStrategy::ExactWhenDefinite`]) are
+    /// factorised as with Cholesky.
+    LastFactorCg {
+        /// Relative reduction of the preconditioned residual.
+        rtol: f64,
+        /// Products before the matrix is factorised.
+        max_iterations: usize,
+    },
 }
 
 /// How accurately conjugate gradients solve each Newton direction.

@@ -30,6 +30,9 @@ pub(super) enum Failure {
 pub(super) struct Matrix {
     pub(super) exact: bool,
     pub(super) factorized: bool,
+    /// Built but not factorised: CG preconditioned with the last factor solves it
+    /// ([`crate::LinearSolver::LastFactorCg`]).
+    pub(super) last_factor: bool,
 }
 
 /// How the direction was solved: with the exact Hessian, and only loosely (CG whose

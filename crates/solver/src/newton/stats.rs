@@ -43,7 +43,8 @@ pub struct SolveStats {
     pub lagged_updates: usize,
     /// Symbolic analyses (sparsity pattern changes).
     pub symbolic_analyses: usize,
-    /// Conjugate-gradient iterations (matrix products), with [`LinearSolver::Pcg`].
+    /// Conjugate-gradient iterations (matrix products), with [`LinearSolver::Pcg`] or
+    /// [`LinearSolver::LastFactorCg`].
     pub pcg_iterations: usize,
     /// Directions that CG did not deliver on a projected Hessian and Cholesky did.
     pub pcg_fallbacks: usize,
