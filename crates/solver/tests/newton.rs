@@ -1852,4 +1852,29 @@ fn last_factor_cg_reaches_the_cholesky_step_with_fewer_factorisations() {
     }
     assert_eq!(f1, fc, "{s1:?}");
     assert_eq!(s1.pcg_fallbacks, s1.iterations - 1, "{s1:?}");
+
+    // Every DOF prescribed and on its way (no free unknown to solve for): the solve moves
+    // them to their targets through the feasibility bound, with no CG.
+    let mut x = [0.0, 0.0];
+    let stats = Newton::new()
+        .minimize_to(
+            &mut Coupled,
+            &mut x,
+            &[true, true],
+            &[2.0, 1.0],
+            &NewtonParams {
+                tolerance: 1e-12,
+                linear: LinearSolver::LastFactorCg {
+                    rtol: 1e-3,
+                    max_iterations: 16,
+                },
+                ..Default::default()
+            },
+        )
+        .unwrap();
+    assert_eq!(x, [2.0, 1.0]);
+    assert!(
+        stats.iterations >= 2 && stats.pcg_iterations == 0,
+        "{stats:?}"
+    );
 }

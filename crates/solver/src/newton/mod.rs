@@ -482,6 +482,7 @@ impl Newton {
             && !cg
             && !exact
             && self.factor_ready
+            && nf > 0
             && matches!(problem.params.linear, LinearSolver::LastFactorCg { .. });
         let mut factor_result = None;
         let mut gradient_s = 0.0;
