@@ -467,7 +467,7 @@ fn chain_step_solve(
     linear: LinearSolver,
     reuse: f64,
     unchanged: bool,
-) -> (Vec<f64>, SolveStats, usize) {
+) -> (Vec<f64>, SolveStats, usize, usize) {
     let (chain, x0, fixed) = crumpled_chain(20);
     let mut obj = Counting {
         inner: ChainStep {
@@ -479,7 +479,8 @@ fn chain_step_solve(
         unchanged,
     };
     let mut x = x0.clone();
-    let stats = Newton::new()
+    let mut newton = Newton::new();
+    let stats = newton
         .minimize(
             &mut obj,
             &mut x,
@@ -493,7 +494,7 @@ fn chain_step_solve(
             },
         )
         .unwrap();
-    (x, stats, obj.hessians)
+    (x, stats, obj.hessians, newton.linear_stats().numeric_count)
 }
 
 /// Reusing the last Hessian once the increments are small (a Shamanskii step): the same
@@ -513,8 +514,8 @@ fn reused_hessians_reach_the_same_step_with_fewer_assemblies() {
             HessianStrategy::Projected,
             HessianStrategy::ExactWhenDefinite,
         ] {
-            let (xf, sf, hf) = chain_step_solve(2.0e4, hessian, linear, 0.0, true);
-            let (xr, sr, hr) = chain_step_solve(2.0e4, hessian, linear, 1e-3, true);
+            let (xf, sf, hf, _) = chain_step_solve(2.0e4, hessian, linear, 0.0, true);
+            let (xr, sr, hr, _) = chain_step_solve(2.0e4, hessian, linear, 1e-3, true);
             let what = format!("{linear:?} {hessian:?}: {sr:?} vs {sf:?}");
             for (a, b) in xf.iter().zip(&xr) {
                 assert!((a - b).abs() < 1e-10, "{what}: {a} vs {b}");
@@ -532,7 +533,7 @@ fn reused_hessians_reach_the_same_step_with_fewer_assemblies() {
 /// is assembled anew whatever the increment.
 #[test]
 fn hessian_is_not_reused_when_its_terms_changed() {
-    let (_, stats, hessians) = chain_step_solve(
+    let (_, stats, hessians, _) = chain_step_solve(
         2.0e4,
         HessianStrategy::Projected,
         LinearSolver::Cholesky,
@@ -561,8 +562,8 @@ fn adaptive_forcing_reaches_the_same_step_with_fewer_cg_products() {
             false,
         )
     };
-    let (xf, sf, _) = solve(Forcing::Fixed);
-    let (xa, sa, _) = solve(Forcing::Adaptive { max: 1e-2 });
+    let (xf, sf, _, _) = solve(Forcing::Fixed);
+    let (xa, sa, _, _) = solve(Forcing::Adaptive { max: 1e-2 });
     for (a, b) in xf.iter().zip(&xa) {
         assert!((a - b).abs() < 1e-10, "{a} vs {b}");
     }
@@ -1801,29 +1802,10 @@ fn recorded_iterations_say_what_each_newton_iteration_did() {
 /// factorised and solved directly (counted as a fallback), and the solve is Cholesky's.
 #[test]
 fn last_factor_cg_reaches_the_cholesky_step_with_fewer_factorisations() {
-    let n = 20;
     let solve = |linear: LinearSolver| {
-        let (chain, x0, fixed) = crumpled_chain(n);
-        let mut obj = ChainStep {
-            chain,
-            inertia: 2.0e2,
-            x_hat: x0.iter().map(|v| v * 1.5).collect(),
-        };
-        let mut x = x0.clone();
-        let mut newton = Newton::new();
-        let stats = newton
-            .minimize(
-                &mut obj,
-                &mut x,
-                &fixed,
-                &NewtonParams {
-                    tolerance: 1e-12,
-                    linear,
-                    ..Default::default()
-                },
-            )
-            .unwrap();
-        (x, stats, newton.linear_stats().numeric_count)
+        let (x, stats, _, factorisations) =
+            chain_step_solve(2.0e2, HessianStrategy::Projected, linear, 0.0, true);
+        (x, stats, factorisations)
     };
     let (xc, sc, fc) = solve(LinearSolver::Cholesky);
     let (xg, sg, fg) = solve(LinearSolver::LastFactorCg {
