@@ -199,6 +199,8 @@ fn trace_rows(
     r: &femp::StepReport,
     rows: &mut Vec<String>,
 ) {
+    // A CSV field in quotes, its own quotes doubled (`--set` values are JSON).
+    let set = set.replace('"', "\"\"");
     let mut solve = 0;
     for (rec, on) in r.stats.trace.iter().zip(&r.largest_increments) {
         if rec.iteration == 1 {
