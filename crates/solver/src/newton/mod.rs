@@ -78,19 +78,6 @@ pub struct Newton {
     /// A factorisation of this solve's matrix size is held ([`LinearSolver::LastFactorCg`]
     /// may precondition with it).
     factor_ready: bool,
-    /// [`LinearSolver::LastFactorCg`]'s vectors, kept across iterations.
-    factor_cg: FactorCg,
-}
-
-/// The vectors of CG preconditioned with the last factorisation.
-#[derive(Default)]
-struct FactorCg {
-    x: Vec<f64>,
-    r: Vec<f64>,
-    z: Vec<f64>,
-    d: Vec<f64>,
-    q: Vec<f64>,
-    parts: Vec<Vec<f64>>,
 }
 
 /// The Hessian's sparse matrix and its factorisation: what a Newton iteration can hand to
@@ -143,7 +130,6 @@ impl Newton {
             interrupt: None,
             record: false,
             factor_ready: false,
-            factor_cg: FactorCg::default(),
         }
     }
 
@@ -478,12 +464,15 @@ impl Newton {
         let hessian_s = t.elapsed().as_secs_f64();
         // CG preconditioned with the last factor: for a projected Hessian, once this solve
         // has a factor.
-        let last_factor = reuse.is_none()
-            && !cg
-            && !exact
-            && self.factor_ready
-            && nf > 0
-            && matches!(problem.params.linear, LinearSolver::LastFactorCg { .. });
+        let last_factor = match problem.params.linear {
+            LinearSolver::LastFactorCg {
+                rtol,
+                max_iterations,
+            } if reuse.is_none() && !cg && !exact && self.factor_ready && nf > 0 => {
+                Some((rtol, max_iterations))
+            }
+            _ => None,
+        };
         let mut factor_result = None;
         let mut gradient_s = 0.0;
         if reuse.is_some() {
@@ -494,7 +483,7 @@ impl Newton {
             // projected one after a rejection is factorised afterwards.
             let (lin, triplets, free) = (&mut self.lin, &self.triplets, &self.free);
             let g = &mut self.g;
-            let only_build = cg || last_factor;
+            let only_build = cg || last_factor.is_some();
             let mut factor = move || {
                 if only_build {
                     // CG needs the matrix only.
@@ -536,7 +525,7 @@ impl Newton {
         let factorized = factor_result
             .expect("the factorisation ran")
             .map_err(Failure::Linear)?;
-        if factorized && !cg && !last_factor {
+        if factorized && !cg && last_factor.is_none() {
             self.factor_ready = true;
         }
         Ok(Matrix {
@@ -681,14 +670,7 @@ impl Newton {
             factorized,
             last_factor,
         } = matrix;
-        if last_factor {
-            let LinearSolver::LastFactorCg {
-                rtol,
-                max_iterations,
-            } = problem.params.linear
-            else {
-                unreachable!("a last-factor matrix without LastFactorCg");
-            };
+        if let Some((rtol, max_iterations)) = last_factor {
             self.prescribed_part(problem.fixed, problem.target, x);
             if !self.last_factor_cg(state, rtol, max_iterations) {
                 // Factorise this matrix (its pattern analysed first) and solve directly;
@@ -794,72 +776,27 @@ impl Newton {
     }
 
     /// [`LinearSolver::LastFactorCg`]: `rhs` solved with the built matrix by CG preconditioned
-    /// with the last factorisation, from 0, until `√(rᵀM⁻¹r)` has fallen by `rtol`; the solution
-    /// replaces `rhs` if it got there within `max_iterations` products (`false`, `rhs`
-    /// unchanged, if not or on non-positive curvature). Needing more than half of them marks
-    /// the factor stale: the next iteration factorises.
+    /// with the last factorisation ([`Pcg::solve_preconditioned`]); the solution replaces
+    /// `rhs` if CG converged (`false`, `rhs` unchanged, if not). Needing more than half of
+    /// `max_iterations` marks the factor stale: the next iteration factorises.
     fn last_factor_cg(&mut self, state: &mut SolveState, rtol: f64, max_iterations: usize) -> bool {
         let t = Instant::now();
-        let n = self.rhs.len();
-        let FactorCg {
-            x,
-            r,
-            z,
-            d,
-            q,
-            parts,
-        } = &mut self.factor_cg;
-        for v in [&mut *x, &mut *r, &mut *z, &mut *d, &mut *q] {
-            v.clear();
-            v.resize(n, 0.0);
-        }
-        let dot = |a: &[f64], b: &[f64]| a.iter().zip(b).map(|(a, b)| a * b).sum::<f64>();
-        r.copy_from_slice(&self.rhs);
-        z.copy_from_slice(r);
-        self.lin.chol.solve_in_place(z);
-        d.copy_from_slice(z);
-        let mut rz = dot(r, z);
-        if !(rz >= 0.0 && rz.is_finite()) {
-            // The factor cannot precondition this right-hand side: factorise.
-            self.factor_ready = false;
-            return false;
-        }
-        let target = rtol * rtol * rz;
-        // A zero right-hand side: p = 0.
-        let mut converged = rz == 0.0;
-        let mut iterations = 0;
-        while !converged && iterations < max_iterations {
-            iterations += 1;
-            self.lin.csc.mul_symmetric(d, q, parts);
-            let dq = dot(d, q);
-            if !(dq > 0.0 && dq.is_finite()) {
-                break;
-            }
-            let alpha = rz / dq;
-            for i in 0..n {
-                x[i] += alpha * d[i];
-                r[i] -= alpha * q[i];
-            }
-            z.copy_from_slice(r);
-            self.lin.chol.solve_in_place(z);
-            let next = dot(r, z);
-            if next <= target {
-                converged = true;
-                break;
-            }
-            let beta = next / rz;
-            rz = next;
-            for i in 0..n {
-                d[i] = z[i] + beta * d[i];
-            }
-        }
+        let Linear { chol, csc, .. } = &mut self.lin;
+        let outcome = self.pcg.solve_preconditioned(
+            csc,
+            &self.rhs,
+            &mut self.sol,
+            (rtol, max_iterations),
+            &mut |z| chol.solve_in_place(z),
+        );
+        let converged = outcome.converged();
         if converged {
-            self.rhs.copy_from_slice(x);
+            self.rhs.copy_from_slice(&self.sol);
         }
-        if 2 * iterations > max_iterations || !converged {
+        if 2 * outcome.iterations() > max_iterations || !converged {
             self.factor_ready = false;
         }
-        state.stats.pcg_iterations += iterations;
+        state.stats.pcg_iterations += outcome.iterations();
         state.stats.pcg_s += t.elapsed().as_secs_f64();
         converged
     }

@@ -30,9 +30,9 @@ pub(super) enum Failure {
 pub(super) struct Matrix {
     pub(super) exact: bool,
     pub(super) factorized: bool,
-    /// Built but not factorised: CG preconditioned with the last factor solves it
-    /// ([`crate::LinearSolver::LastFactorCg`]).
-    pub(super) last_factor: bool,
+    /// Built but not factorised: CG preconditioned with the last factor solves it to this
+    /// `(rtol, max_iterations)` ([`crate::LinearSolver::LastFactorCg`]).
+    pub(super) last_factor: Option<(f64, usize)>,
 }
 
 /// How the direction was solved: with the exact Hessian, and only loosely (CG whose
