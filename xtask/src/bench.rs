@@ -127,17 +127,9 @@ pub fn main(args: &[String]) -> Result<()> {
             }
             "--set" => {
                 let kv = it.next().context(USAGE)?;
-                let (key, values) = kv
-                    .split_once('=')
-                    .filter(|(k, v)| !k.is_empty() && !v.is_empty())
+                let (key, values) = crate::settings::split(kv)
                     .with_context(|| format!("`--set {kv}` is not KEY=V1,V2,…\n{USAGE}"))?;
-                let values = values
-                    .split(',')
-                    .map(|v| {
-                        serde_json::from_str(v)
-                            .unwrap_or_else(|_| serde_json::Value::String(v.to_string()))
-                    })
-                    .collect();
+                let values = values.split(',').map(crate::settings::value).collect();
                 sets.push((key.to_string(), values));
             }
             "--trace" => {
@@ -249,7 +241,7 @@ fn variants<T: Copy>(asked: &[T]) -> Vec<Option<T>> {
 }
 
 /// Scene fields set by `--set`: (dotted path, value).
-type Settings = [(String, serde_json::Value)];
+type Settings = [crate::settings::Setting];
 
 /// Every combination of one value per `--set` key (one empty combination without `--set`).
 fn combinations(
@@ -271,8 +263,7 @@ fn combinations(
     out
 }
 
-/// The scene file with each `(dotted path, value)` set; objects on the way are created, an
-/// index past an array's end or a path through a non-container is an error.
+/// The scene file with each `(dotted path, value)` set ([`crate::settings::set`]).
 fn scene_with(path: &Path, set: &Settings) -> Result<scene::Scene> {
     if set.is_empty() {
         return Ok(scene::load(path)?);
@@ -280,21 +271,7 @@ fn scene_with(path: &Path, set: &Settings) -> Result<scene::Scene> {
     let text = std::fs::read_to_string(path).with_context(|| path.display().to_string())?;
     let mut json: serde_json::Value = serde_json::from_str(&text)?;
     for (key, value) in set {
-        let mut at = &mut json;
-        for part in key.split('.') {
-            at = match at {
-                serde_json::Value::Object(m) => m
-                    .entry(part)
-                    .or_insert_with(|| serde_json::Value::Object(Default::default())),
-                serde_json::Value::Array(a) => part
-                    .parse::<usize>()
-                    .ok()
-                    .and_then(|k| a.get_mut(k))
-                    .with_context(|| format!("--set {key}: no element `{part}`"))?,
-                _ => bail!("--set {key}: `{part}` is inside a value, not an object or array"),
-            };
-        }
-        *at = value.clone();
+        crate::settings::set(&mut json, key, value)?;
     }
     let stem = path
         .file_stem()
@@ -313,11 +290,7 @@ fn run_case(
 ) -> Result<()> {
     let dir = root.join("fixtures/scenes");
     let s = scene_with(&dir.join(case.file), set)?;
-    let set = set
-        .iter()
-        .map(|(k, v)| format!("{k}={v}"))
-        .collect::<Vec<_>>()
-        .join(" ");
+    let set = crate::settings::label(set);
     let mut spec = s.spec().clone();
     spec.solver.ordering = ordering;
     if let Some(b) = below {

@@ -13,6 +13,7 @@
 mod bench;
 mod ci;
 mod same;
+mod settings;
 #[cfg(test)]
 mod structure;
 mod validate;
@@ -55,6 +56,7 @@ const USAGE: &str = "usage: cargo xtask <task>
 tasks:
   ci        format check, clippy -D warnings, and the test suite (what .ci/run runs)
   validate  the papers' experiments: [--quick | --full] [--only NAME…] [--out DIR]
+            [--set KEY=VALUE …]
   bench     3D step cost: Newton iterations and seconds per step on block_on_plate_3d and a
             §6.7 twist window [--only plate|twist] [--steps N] [--ordering auto|amd|nested_dissection …]
             [--set KEY=V1,V2,… …]

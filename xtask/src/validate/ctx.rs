@@ -74,6 +74,8 @@ pub struct Ctx {
     pub(super) progress: indicatif::MultiProgress,
     /// Pictured runs so far: label, caption, which files to show.
     pub(super) pictured: std::cell::RefCell<Vec<(String, String, usize, bool)>>,
+    /// Scene fields set on every BFEMP scene (`validate --set`).
+    pub(super) settings: Vec<crate::settings::Setting>,
 }
 
 impl Ctx {
@@ -143,9 +145,22 @@ impl Ctx {
     ///
     /// Augury scenes run with `augury.penetration_limit: null`: the suite studies where the
     /// method lets bodies into (or through) each other, so such a run goes on and its rows
-    /// report how deep (`summary.max_penetration_depth`, `passed_through_steps`).
+    /// report how deep (`summary.max_penetration_depth`, `passed_through_steps`). BFEMP scenes
+    /// get the `--set` fields ([`Ctx::settings`]), then are validated as any scene is.
     pub fn scene(&self, label: &str, spec: &SceneSpec) -> Result<femp::scene::Scene> {
         let mut spec = spec.clone();
+        if spec.method == femp::scene::Method::Bfemp && !self.settings.is_empty() {
+            let mut json: serde_json::Value = serde_json::from_str(&spec.to_json())?;
+            for (key, value) in &self.settings {
+                crate::settings::set(&mut json, key, value)?;
+            }
+            return Ok(femp::scene::parse(
+                &json.to_string(),
+                &format!("{label} (with --set)"),
+                self.root.join("fixtures/scenes"),
+                label,
+            )?);
+        }
         if let Some(a) = spec.augury.as_mut() {
             a.penetration_limit = None;
         } else if spec.method == femp::scene::Method::Augury {
@@ -267,5 +282,64 @@ impl Ctx {
         bar.finish_and_clear();
         self.progress.remove(&bar);
         Ok(r?)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn ctx(settings: &[(&str, &str)]) -> Ctx {
+        let dir = std::env::temp_dir().join("femp-xtask-ctx-test");
+        Ctx {
+            tier: Tier::Quick,
+            dir: dir.clone(),
+            charts: dir,
+            root: crate::validate::workspace_root(),
+            progress: indicatif::MultiProgress::new(),
+            pictured: Default::default(),
+            settings: settings
+                .iter()
+                .map(|(k, v)| (k.to_string(), crate::settings::value(v)))
+                .collect(),
+        }
+    }
+
+    /// `validate --set` reaches every BFEMP scene the suite runs, leaves augury scenes as they
+    /// are, and a field the format does not have is an error naming it.
+    #[test]
+    fn set_fields_reach_bfemp_scenes_only() {
+        use femp::scene::ProjectionSpec;
+        let plain = ctx(&[]);
+        let set = ctx(&[
+            ("solver.projection", "when_indefinite"),
+            ("solver.friction_forcing", "0.5"),
+        ]);
+        let twist = plain.fixture("twist").unwrap();
+        assert_eq!(twist.solver.projection, ProjectionSpec::Always);
+        let s = set.scene("twist", &twist).unwrap();
+        assert_eq!(s.spec().solver.projection, ProjectionSpec::WhenIndefinite);
+        assert_eq!(s.spec().solver.friction_forcing, 0.5);
+        // Everything else as it was.
+        let mut back = s.spec().clone();
+        back.solver.projection = ProjectionSpec::Always;
+        back.solver.friction_forcing = 0.0;
+        assert_eq!(
+            back.to_json(),
+            plain.scene("twist", &twist).unwrap().spec().to_json()
+        );
+        let blocks = plain.fixture("augury_blocks").unwrap();
+        assert_eq!(
+            set.scene("blocks", &blocks).unwrap().spec().to_json(),
+            plain.scene("blocks", &blocks).unwrap().spec().to_json()
+        );
+        let err = format!(
+            "{:#}",
+            ctx(&[("solver.no_such_field", "1")])
+                .scene("twist", &twist)
+                .err()
+                .unwrap()
+        );
+        assert!(err.contains("no_such_field"), "{err}");
     }
 }

@@ -116,6 +116,7 @@ mod tests {
             root: crate::validate::workspace_root(),
             progress: indicatif::MultiProgress::new(),
             pictured: Default::default(),
+            settings: Vec::new(),
         }
     }
 

@@ -3,6 +3,7 @@
 //!
 //! ```text
 //! cargo xtask validate [--quick | --full] [--only NAME…] [--jobs N] [--out DIR] [--publish]
+//!                       [--set KEY=VALUE …]
 //! ```
 //!
 //! The quick tier (default) uses coarser resolutions that keep each check meaningful; the full
@@ -36,7 +37,9 @@ mod workers;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
-use anyhow::{Result, bail};
+use anyhow::{Context, Result, bail};
+
+use crate::settings::{self, Setting};
 
 pub use compact::compact_png;
 pub use ctx::{Ctx, Pictures};
@@ -170,7 +173,7 @@ const EXPERIMENTS: &[Experiment] = &[
 
 const USAGE: &str =
     "usage: cargo xtask validate [--quick | --full] [--only NAME…] [--jobs N] [--report] \
-     [--out DIR] [--publish]
+     [--out DIR] [--publish] [--set KEY=VALUE …]
 
   --quick    coarse resolutions, minutes (default)
   --full     the papers' parameters (hours); with no --only, publishes to docs/validation/full/
@@ -181,7 +184,12 @@ const USAGE: &str =
   --report   run nothing: assemble the report from the saved outcomes
   --out      output directory (default target/validation/<tier>)
   --publish  copy the report and what it shows into docs/validation/ (quick) or
-             docs/validation/full/ (full)";
+             docs/validation/full/ (full)
+  --set      run every BFEMP scene of the suite with a field set by its dotted path
+             (`--set solver.projection=when_indefinite`; VALUE is JSON, or else a string;
+             repeatable), to measure a setting on the whole suite before it becomes a default.
+             The report says so; the output directory defaults to target/validation/<tier>-set
+             and holds outcomes of one set of settings only; nothing is published";
 
 /// What `cargo xtask validate` was asked to do.
 struct Args {
@@ -192,6 +200,7 @@ struct Args {
     jobs: usize,
     worker: bool,
     out: Option<PathBuf>,
+    set: Vec<Setting>,
 }
 
 /// The arguments after `validate`; `None` after printing the help.
@@ -203,6 +212,7 @@ fn parse_args(args: &[String]) -> Result<Option<Args>> {
     let mut jobs = 1usize;
     let mut worker = false;
     let mut out: Option<PathBuf> = None;
+    let mut set = Vec::new();
     let mut it = args.iter().peekable();
     while let Some(a) = it.next() {
         match a.as_str() {
@@ -223,6 +233,14 @@ fn parse_args(args: &[String]) -> Result<Option<Args>> {
                 Some(d) => out = Some(PathBuf::from(d)),
                 None => bail!("--out needs a directory\n{USAGE}"),
             },
+            "--set" => {
+                let kv = it
+                    .next()
+                    .with_context(|| format!("--set needs KEY=VALUE\n{USAGE}"))?;
+                let (key, value) = crate::settings::split(kv)
+                    .with_context(|| format!("`--set {kv}` is not KEY=VALUE\n{USAGE}"))?;
+                set.push((key.to_string(), crate::settings::value(value)));
+            }
             "--only" => {
                 while let Some(n) = it.next_if(|n| !n.starts_with("--")) {
                     only.push(n.clone());
@@ -241,6 +259,12 @@ fn parse_args(args: &[String]) -> Result<Option<Args>> {
             other => bail!("unknown argument `{other}`\n{USAGE}"),
         }
     }
+    if publish && !set.is_empty() {
+        bail!(
+            "--publish cannot be combined with --set: the published reports are of the suite's \
+             own settings\n{USAGE}"
+        );
+    }
     if report_only && !only.is_empty() {
         bail!("--report runs nothing; it cannot be combined with --only\n{USAGE}");
     }
@@ -258,6 +282,7 @@ fn parse_args(args: &[String]) -> Result<Option<Args>> {
         jobs,
         worker,
         out,
+        set,
     }))
 }
 
@@ -271,6 +296,7 @@ pub fn main(args: &[String]) -> Result<()> {
         jobs,
         worker,
         out,
+        set,
     }) = parse_args(args)?
     else {
         return Ok(());
@@ -278,8 +304,19 @@ pub fn main(args: &[String]) -> Result<()> {
     let root = workspace_root();
     // The code that runs is the code this binary was built from.
     let commit = git_describe();
-    let out = out.unwrap_or_else(|| root.join("target/validation").join(tier.name()));
+    let settings = settings::labels(&set);
+    let out = out.unwrap_or_else(|| {
+        let dir = match set.is_empty() {
+            true => tier.name().to_string(),
+            false => format!("{}-set", tier.name()),
+        };
+        root.join("target/validation").join(dir)
+    });
     std::fs::create_dir_all(&out)?;
+    // Before anything runs: the directory's saved outcomes are of these settings (`load`).
+    for e in EXPERIMENTS {
+        load(&out, e.name, tier, &settings)?;
+    }
     let progress = indicatif::MultiProgress::new();
     let started = Instant::now();
     let mut done = Vec::new();
@@ -293,13 +330,13 @@ pub fn main(args: &[String]) -> Result<()> {
         .collect();
     let parallel = jobs > 1 && selected.len() > 1 && !worker;
     if parallel {
-        run_workers(&selected, jobs, tier, &out)?;
+        run_workers(&selected, jobs, tier, &out, &set)?;
     }
     for e in EXPERIMENTS {
         if parallel {
             // Run by a worker: a missing outcome means the worker died before saving it.
             let fresh = selected.contains(&e.name);
-            let mut d = Done::saved(e, load(&out, e.name, tier)?, fresh);
+            let mut d = Done::saved(e, load(&out, e.name, tier, &settings)?, fresh);
             if fresh && d.outcome.is_none() {
                 d.outcome = Some(Err(
                     "its worker process stopped before saving an outcome (see its output above)"
@@ -311,7 +348,7 @@ pub fn main(args: &[String]) -> Result<()> {
             continue;
         }
         if !is_selected(e.name) {
-            done.push(Done::saved(e, load(&out, e.name, tier)?, false));
+            done.push(Done::saved(e, load(&out, e.name, tier, &settings)?, false));
             continue;
         }
         say(
@@ -325,6 +362,7 @@ pub fn main(args: &[String]) -> Result<()> {
             root: root.clone(),
             progress: progress.clone(),
             pictured: Default::default(),
+            settings: set.clone(),
         };
         let t = Instant::now();
         let outcome = (e.run)(&ctx)
@@ -334,7 +372,15 @@ pub fn main(args: &[String]) -> Result<()> {
             })
             .map_err(|err| format!("{err:#}"));
         let wall_s = t.elapsed().as_secs_f64();
-        let saved = save(&commit, &out, e.name, tier, wall_s, worker, &outcome)?;
+        let saved = save(
+            (&commit, &settings),
+            &out,
+            e.name,
+            tier,
+            wall_s,
+            worker,
+            &outcome,
+        )?;
         let d = Done {
             name: e.name,
             section: e.section,
@@ -363,9 +409,9 @@ pub fn main(args: &[String]) -> Result<()> {
         }
         return Ok(());
     }
-    report::write(&out, tier, &done)?;
+    report::write(&out, tier, &done, &settings)?;
     println!("report: {}", out.join("README.md").display());
-    if (tier == Tier::Full && only.is_empty() && !report_only) || publish {
+    if (tier == Tier::Full && only.is_empty() && !report_only && set.is_empty()) || publish {
         let docs = match tier {
             Tier::Quick => root.join("docs/validation"),
             Tier::Full => root.join("docs/validation/full"),
@@ -444,13 +490,22 @@ mod tests {
             notes: vec!["a note".into()],
             pictures: vec![("scene".into(), vec![out.join("charts/scene_k.png")])],
         });
-        save("abc1234", out, "demo", Tier::Full, 12.5, true, &outcome).unwrap();
+        save(
+            ("abc1234", &[]),
+            out,
+            "demo",
+            Tier::Full,
+            12.5,
+            true,
+            &outcome,
+        )
+        .unwrap();
         let text = std::fs::read_to_string(out.join("demo/outcome.json")).unwrap();
         assert!(
             text.contains("\"charts/a.png\""),
             "paths saved relative: {text}"
         );
-        let saved = load(out, "demo", Tier::Full).unwrap().expect("saved");
+        let saved = load(out, "demo", Tier::Full, &[]).unwrap().expect("saved");
         assert_eq!(saved.commit, "abc1234");
         assert_eq!(saved.wall_s, 12.5);
         assert!(saved.concurrent);
@@ -462,15 +517,15 @@ mod tests {
         assert_eq!(o.pictures[0].1[0], out.join("charts/scene_k.png"));
         assert_eq!(o.notes, vec!["a note".to_string()]);
         // Another tier's outcome is not this tier's; nothing saved is `None`.
-        assert!(load(out, "demo", Tier::Quick).unwrap().is_none());
-        assert!(load(out, "other", Tier::Full).unwrap().is_none());
+        assert!(load(out, "demo", Tier::Quick, &[]).unwrap().is_none());
+        assert!(load(out, "other", Tier::Full, &[]).unwrap().is_none());
         // A damaged file is an error that names it.
         std::fs::write(out.join("demo/outcome.json"), "{").unwrap();
-        let err = format!("{:#}", load(out, "demo", Tier::Full).err().unwrap());
+        let err = format!("{:#}", load(out, "demo", Tier::Full, &[]).err().unwrap());
         assert!(err.contains("demo/outcome.json"), "{err}");
         // A failed run is saved as its error.
         save(
-            "abc1234",
+            ("abc1234", &[]),
             out,
             "bad",
             Tier::Full,
@@ -479,16 +534,60 @@ mod tests {
             &Err("it broke".into()),
         )
         .unwrap();
-        let bad = load(out, "bad", Tier::Full).unwrap().unwrap();
+        let bad = load(out, "bad", Tier::Full, &[]).unwrap().unwrap();
         assert!(!bad.concurrent);
         assert_eq!(bad.outcome.err().unwrap(), "it broke");
         // Saved before `--jobs` existed (no `concurrent` field): not concurrent.
         let old = r#"{"tier": "full", "wall_s": 3.0, "finished_unix": 0, "commit": "c",
             "outcome": {"Err": "old"}}"#;
         std::fs::write(out.join("bad/outcome.json"), old).unwrap();
-        let old = load(out, "bad", Tier::Full).unwrap().unwrap();
+        let old = load(out, "bad", Tier::Full, &[]).unwrap().unwrap();
         assert!(!old.concurrent);
         assert_eq!(old.wall_s, 3.0);
+        // Saved with `--set`: loads back with the same settings only; with others, or none,
+        // it is an error that names the file and both sets of settings.
+        let set = vec!["solver.projection=\"when_indefinite\"".to_string()];
+        save(
+            ("abc1234", &set),
+            out,
+            "demo",
+            Tier::Full,
+            1.0,
+            false,
+            &outcome,
+        )
+        .unwrap();
+        let text = std::fs::read_to_string(out.join("demo/outcome.json")).unwrap();
+        assert!(text.contains("when_indefinite"), "{text}");
+        assert_eq!(
+            load(out, "demo", Tier::Full, &set)
+                .unwrap()
+                .unwrap()
+                .settings,
+            set
+        );
+        let err = format!("{:#}", load(out, "demo", Tier::Full, &[]).err().unwrap());
+        assert!(
+            err.contains("demo/outcome.json")
+                && err.contains("--set solver.projection")
+                && err.contains("this run has no --set"),
+            "{err}"
+        );
+        let other = vec!["solver.newton_test=\"points\"".to_string()];
+        assert!(load(out, "demo", Tier::Full, &other).is_err());
+        // Without `--set` nothing is written of settings (outcomes as before).
+        save(
+            ("abc1234", &[]),
+            out,
+            "demo",
+            Tier::Full,
+            1.0,
+            false,
+            &outcome,
+        )
+        .unwrap();
+        let text = std::fs::read_to_string(out.join("demo/outcome.json")).unwrap();
+        assert!(!text.contains("settings"), "{text}");
     }
 
     #[test]

@@ -278,9 +278,21 @@ fn experiment_sections(s: &mut String, out: &Path, tier: Tier, done: &[Done]) {
 }
 
 /// Write `out/README.md`.
-pub fn write(out: &Path, tier: Tier, done: &[Done]) -> Result<()> {
+pub fn write(out: &Path, tier: Tier, done: &[Done], settings: &[String]) -> Result<()> {
     let mut s = String::new();
     introduction(&mut s, tier, done);
+    if !settings.is_empty() {
+        let _ = writeln!(
+            s,
+            "**Not the suite's own settings**: every BFEMP scene ran with {} (`cargo xtask \
+             validate --set`); augury scenes as they are.\n",
+            settings
+                .iter()
+                .map(|k| format!("`{k}`"))
+                .collect::<Vec<_>>()
+                .join(", ")
+        );
+    }
     check_table(&mut s, done);
     experiment_sections(&mut s, out, tier, done);
     let path = out.join("README.md");

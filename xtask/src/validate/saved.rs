@@ -61,13 +61,17 @@ pub(super) struct Saved {
     /// Ran alongside other experiments (`--jobs`).
     #[serde(default)]
     pub(super) concurrent: bool,
+    /// The scene fields `--set` on every BFEMP scene (`key=value`; none: the suite's own).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub(super) settings: Vec<String>,
     /// Paths are relative to the output directory.
     pub(super) outcome: Result<Outcome, String>,
 }
 
-/// Save `outcome` of experiment `name` under `out` (paths made relative to `out`).
+/// Save `outcome` of experiment `name` under `out` (paths made relative to `out`), run by the
+/// code of `commit` with `settings` (`--set`).
 pub(super) fn save(
-    commit: &str,
+    (commit, settings): (&str, &[String]),
     out: &Path,
     name: &str,
     tier: Tier,
@@ -100,6 +104,7 @@ pub(super) fn save(
             .map_or(0, |d| d.as_secs()),
         commit: commit.to_string(),
         concurrent,
+        settings: settings.to_vec(),
         outcome,
     };
     let path = out.join(name).join("outcome.json");
@@ -110,8 +115,14 @@ pub(super) fn save(
 }
 
 /// The saved outcome of experiment `name` under `out`, if there is one of this tier (paths
-/// joined back onto `out`); an unreadable file is an error naming it.
-pub(super) fn load(out: &Path, name: &str, tier: Tier) -> Result<Option<Saved>> {
+/// joined back onto `out`); an unreadable file is an error naming it, and so is one run with
+/// other `--set` settings than `settings` (one report shows one set of settings).
+pub(super) fn load(
+    out: &Path,
+    name: &str,
+    tier: Tier,
+    settings: &[String],
+) -> Result<Option<Saved>> {
     let path = out.join(name).join("outcome.json");
     if !path.exists() {
         return Ok(None);
@@ -126,6 +137,19 @@ pub(super) fn load(out: &Path, name: &str, tier: Tier) -> Result<Option<Saved>> 
     })?;
     if saved.tier != tier {
         return Ok(None);
+    }
+    if saved.settings != settings {
+        let said = |s: &[String]| match s {
+            [] => "no --set".to_string(),
+            s => format!("--set {}", s.join(" --set ")),
+        };
+        anyhow::bail!(
+            "{} was run with {}, this run has {}: one output directory holds one set of \
+             settings (choose another --out)",
+            path.display(),
+            said(&saved.settings),
+            said(settings)
+        );
     }
     if let Ok(o) = &mut saved.outcome {
         for (_, p) in &mut o.charts {

@@ -17,10 +17,12 @@ pub(super) fn run_workers(
     jobs: usize,
     tier: Tier,
     out: &Path,
+    settings: &[crate::settings::Setting],
 ) -> Result<()> {
     use std::io::BufRead;
     use std::process::{Command, Stdio};
     let mut cost: Vec<(f64, &str)> = Vec::with_capacity(names.len());
+    let labels = crate::settings::labels(settings);
     for &n in names {
         let e = EXPERIMENTS
             .iter()
@@ -28,7 +30,7 @@ pub(super) fn run_workers(
             .expect("names are checked against EXPERIMENTS");
         // The last saved wall time of this tier, else the CI figure (scaled for the full tier:
         // only the order matters).
-        let expected = match load(out, n, tier).ok().flatten() {
+        let expected = match load(out, n, tier, &labels).ok().flatten() {
             Some(s) => s.wall_s,
             None if tier == Tier::Quick => e.quick_s,
             None => 30.0 * e.quick_s,
@@ -52,6 +54,7 @@ pub(super) fn run_workers(
             .arg("--worker")
             .arg("--out")
             .arg(out)
+            .args(labels.iter().flat_map(|l| ["--set", l.as_str()]))
             .arg("--only")
             .args(g)
             .stdout(Stdio::piped())
