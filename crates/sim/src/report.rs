@@ -38,6 +38,9 @@ pub struct StepReport {
     pub friction_iterations: usize,
     /// Friction operators lagged at an extrapolated point (`solver.friction_extrapolation`).
     pub extrapolated_lags: usize,
+    /// Friction operators lagged half way once the loop stopped contracting
+    /// (`solver.friction_relaxation`).
+    pub relaxed_lags: usize,
     /// Iterations of the augury contact step (its velocity corrections; 0 for BFEMP).
     pub augury_iterations: usize,
     /// Whether the friction iteration converged (always true without friction).
@@ -79,6 +82,7 @@ impl StepReport {
         self.newton_iterations += o.newton_iterations;
         self.friction_iterations += o.friction_iterations;
         self.extrapolated_lags += o.extrapolated_lags;
+        self.relaxed_lags += o.relaxed_lags;
         self.augury_iterations += o.augury_iterations;
         self.friction_converged &= o.friction_converged;
         if self.retried.is_none() {
@@ -108,6 +112,7 @@ impl Default for StepReport {
             newton_iterations: 0,
             friction_iterations: 0,
             extrapolated_lags: 0,
+            relaxed_lags: 0,
             augury_iterations: 0,
             friction_converged: true,
             retried: None,

@@ -361,6 +361,7 @@ impl Bfemp {
             update_below: solver.friction_update_below,
             forcing: solver.friction_forcing,
             extrapolate: solver.friction_extrapolation,
+            relax: solver.friction_relaxation.then_some(1.0),
         };
         let (step, time) = (clock.step, clock.time);
         let failed = |(e, j): (femp_solver::SolveError, usize)| match e {
@@ -984,6 +985,10 @@ pub(crate) fn friction_loop<const D: usize>(
     // Aitken extrapolation: the change after the last solve lagged at a solve's own point.
     let mut plain_change: Option<f64> = None;
     let mut lag_point = Vec::new();
+    // Relaxation: the change after the previous solve, and whether the loop has stopped
+    // contracting (then every later operator is lagged half way).
+    let mut last_change: Option<f64> = None;
+    let mut relaxing = false;
     loop {
         // Half a solve's iterations at most update the operator: the rest converge on it.
         obj.lag.limit = obj.lag.count + params.max_iterations / 2;
@@ -1014,8 +1019,15 @@ pub(crate) fn friction_loop<const D: usize>(
             break;
         }
         let before = obj.lag.terms;
-        let previous = plain_change.filter(|_| policy.extrapolate);
-        if extrapolated_lag(obj, x, previous, change, &mut lag_point) {
+        relaxing |= policy
+            .relax
+            .is_some_and(|ratio| last_change.is_some_and(|p| change >= ratio * p));
+        last_change = Some(change);
+        let previous = plain_change.filter(|_| policy.extrapolate && !relaxing);
+        if relaxing && relaxed_lag(obj, x, &mut lag_point) {
+            report.relaxed_lags += 1;
+            plain_change = None;
+        } else if extrapolated_lag(obj, x, previous, change, &mut lag_point) {
             report.extrapolated_lags += 1;
             plain_change = None;
         } else {
@@ -1041,8 +1053,7 @@ pub(crate) fn friction_loop<const D: usize>(
 /// Lag the friction operator at the Aitken extrapolation of the friction loop's iterates, if
 /// it applies: the last two changes `previous` and `change` of the operator's point shrank by a
 /// steady ratio `r = change / previous < 0.9`, and the straight path from `x` to
-/// `y = x + r/(1 − r) (x − the operator's point)` is feasible (`y` is built in `lag_point`,
-/// reused across the loop's solves: first the step `y − x`, then `y`). For a
+/// `y = x + r/(1 − r) (x − the operator's point)` is feasible ([`lag_along`]). For a
 /// linearly converging fixed-point iteration `y` is its limit to first order.
 fn extrapolated_lag<const D: usize>(
     obj: &mut StepObjective<'_, D>,
@@ -1058,7 +1069,29 @@ fn extrapolated_lag<const D: usize>(
     if !(r > 0.0 && r < 0.9) {
         return false;
     }
-    let factor = r / (1.0 - r);
+    lag_along(obj, x, r / (1.0 - r), lag_point)
+}
+
+/// Lag the friction operator half way from its last point to the solve's `x` (the averaged
+/// fixed-point iteration: the same fixed points, and it may converge where the plain one
+/// cycles), if the straight path from `x` there is feasible.
+fn relaxed_lag<const D: usize>(
+    obj: &mut StepObjective<'_, D>,
+    x: &[f64],
+    lag_point: &mut Vec<f64>,
+) -> bool {
+    lag_along(obj, x, -0.5, lag_point)
+}
+
+/// Lag the friction operator at `y = x + factor (x − the operator's last point)` if the
+/// straight path from `x` to `y` is feasible (`lag_point` reused across the loop's solves:
+/// first the step `y − x`, then `y`).
+fn lag_along<const D: usize>(
+    obj: &mut StepObjective<'_, D>,
+    x: &[f64],
+    factor: f64,
+    lag_point: &mut Vec<f64>,
+) -> bool {
     lag_point.clear();
     lag_point.extend(
         x.iter()
@@ -1089,6 +1122,9 @@ pub(crate) struct FrictionPolicy {
     pub(crate) forcing: f64,
     /// `solver.friction_extrapolation`.
     pub(crate) extrapolate: bool,
+    /// `solver.friction_relaxation`: relax once a solve's change is at least this times the
+    /// previous solve's (1 from the scene: once the loop stops contracting).
+    pub(crate) relax: Option<f64>,
 }
 
 /// Start `x` at the predictor `x_hat` (targets for prescribed DOFs) when the straight path

@@ -547,25 +547,23 @@ mod tests {
         // Saved with `--set`: loads back with the same settings only; with others, or none,
         // it is an error that names the file and both sets of settings.
         let set = vec!["solver.projection=\"when_indefinite\"".to_string()];
-        save(
-            ("abc1234", &set),
-            out,
-            "demo",
-            Tier::Full,
-            1.0,
-            false,
-            &outcome,
-        )
-        .unwrap();
-        let text = std::fs::read_to_string(out.join("demo/outcome.json")).unwrap();
+        let save_demo = |settings: &[String]| {
+            save(
+                ("abc1234", settings),
+                out,
+                "demo",
+                Tier::Full,
+                1.0,
+                false,
+                &outcome,
+            )
+            .unwrap();
+            std::fs::read_to_string(out.join("demo/outcome.json")).unwrap()
+        };
+        let text = save_demo(&set);
         assert!(text.contains("when_indefinite"), "{text}");
-        assert_eq!(
-            load(out, "demo", Tier::Full, &set)
-                .unwrap()
-                .unwrap()
-                .settings,
-            set
-        );
+        let back = load(out, "demo", Tier::Full, &set).unwrap().unwrap();
+        assert_eq!(back.settings, set);
         let err = format!("{:#}", load(out, "demo", Tier::Full, &[]).err().unwrap());
         assert!(
             err.contains("demo/outcome.json")
@@ -576,17 +574,7 @@ mod tests {
         let other = vec!["solver.newton_test=\"points\"".to_string()];
         assert!(load(out, "demo", Tier::Full, &other).is_err());
         // Without `--set` nothing is written of settings (outcomes as before).
-        save(
-            ("abc1234", &[]),
-            out,
-            "demo",
-            Tier::Full,
-            1.0,
-            false,
-            &outcome,
-        )
-        .unwrap();
-        let text = std::fs::read_to_string(out.join("demo/outcome.json")).unwrap();
+        let text = save_demo(&[]);
         assert!(!text.contains("settings"), "{text}");
     }
 

@@ -108,6 +108,7 @@ class Solver(_Spec):
     friction_update_below: Optional[float] = None
     friction_forcing: Optional[float] = None
     friction_extrapolation: Optional[bool] = None
+    friction_relaxation: Optional[bool] = None
     newton_test: Optional[str] = None
     retry_other_projection: Optional[bool] = None
     ordering: Optional[str] = None

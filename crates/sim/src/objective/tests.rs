@@ -533,14 +533,16 @@ fn contact_only_objective_is_inertia_and_barrier_3d() {
 /// tolerance over a step — with the operator updated between solves only and inside the
 /// Newton iterations too (`solver.friction_update_below`), with inexact solves while the
 /// operator moves (`solver.friction_forcing`), and with the operator lagged at Aitken's
-/// extrapolation (`solver.friction_extrapolation`, which must then have been used). Stopping one
-/// friction iteration early, ending on an inexact solve or on an extrapolated operator, or
-/// measuring the fixed point on grid nodes a particle barely touches, fails it.
+/// extrapolation (`solver.friction_extrapolation`, which must then have been used), and with
+/// the operator lagged half way from the second solve on (`solver.friction_relaxation`, its
+/// trigger forced: these loops contract). Stopping one friction iteration early, ending on an
+/// inexact solve or on an extrapolated or relaxed operator, or measuring the fixed point on
+/// grid nodes a particle barely touches, fails it.
 fn check_friction_fixed_point<const D: usize>(
     json: &str,
     below: f64,
     forcing: f64,
-    extrapolate: bool,
+    (extrapolate, relax): (bool, bool),
 ) {
     use crate::step::{FrictionPolicy, friction_loop};
     use femp_solver::{Newton, NewtonParams};
@@ -570,6 +572,7 @@ fn check_friction_fixed_point<const D: usize>(
             update_below: below,
             forcing,
             extrapolate,
+            relax: relax.then_some(0.0),
         },
         &mut report,
     )
@@ -580,6 +583,12 @@ fn check_friction_fixed_point<const D: usize>(
         extrapolate,
         "{D}D: {} operators lagged at an extrapolated point",
         report.extrapolated_lags
+    );
+    assert_eq!(
+        report.relaxed_lags > 0,
+        relax,
+        "{D}D: {} operators lagged half way",
+        report.relaxed_lags
     );
     // The loop ends on a solve to the full tolerance.
     assert!(
@@ -601,23 +610,25 @@ fn check_friction_fixed_point<const D: usize>(
     let moved = obj.lag_distance(&again) / w.clock.dt;
     assert!(
         moved < 2.0 * tol,
-        "{D}D, update below {below}, forcing {forcing}, extrapolated {extrapolate}: a further \
-         friction iteration moves a point by {moved:e} m/s"
+        "{D}D, update below {below}, forcing {forcing}, extrapolated {extrapolate}, relaxed \
+         {relax}: a further friction iteration moves a point by {moved:e} m/s"
     );
 }
 
 #[test]
 fn friction_loop_ends_at_its_fixed_point() {
-    for (below, forcing, extrapolate) in [
-        (0.0, 0.0, false),
-        (1e-2, 0.0, false),
-        (0.0, 0.1, false),
-        (0.0, 0.5, false),
-        (0.0, 0.0, true),
-        (0.0, 0.5, true),
+    for (below, forcing, extrapolate, relax) in [
+        (0.0, 0.0, false, false),
+        (1e-2, 0.0, false, false),
+        (0.0, 0.1, false, false),
+        (0.0, 0.5, false, false),
+        (0.0, 0.0, true, false),
+        (0.0, 0.5, true, false),
+        (0.0, 0.0, false, true),
+        (0.0, 0.5, false, true),
     ] {
-        check_friction_fixed_point::<2>(SCENE_2D, below, forcing, extrapolate);
-        check_friction_fixed_point::<3>(SCENE_3D, below, forcing, extrapolate);
+        check_friction_fixed_point::<2>(SCENE_2D, below, forcing, (extrapolate, relax));
+        check_friction_fixed_point::<3>(SCENE_3D, below, forcing, (extrapolate, relax));
     }
 }
 

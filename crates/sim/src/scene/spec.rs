@@ -250,6 +250,11 @@ pub struct SolverSpec {
     /// instead of at the solve's `x`; the loop still ends only at a fixed point.
     #[serde(skip_serializing_if = "is_false")]
     pub friction_extrapolation: bool,
+    /// Once a solve's change of the friction operator's point is not below the previous
+    /// solve's (the loop has stopped contracting), lag every later operator half way from its
+    /// last point to the solve's `x` (averaged fixed-point iteration; the same fixed points).
+    #[serde(skip_serializing_if = "is_false")]
+    pub friction_relaxation: bool,
     /// What Newton's convergence test measures the increment on.
     pub newton_test: NewtonTestSpec,
     /// When a step's Newton solve fails (iteration limit, stalled line search), solve the step
@@ -332,6 +337,7 @@ impl Default for SolverSpec {
             friction_update_below: 0.0,
             friction_forcing: 0.0,
             friction_extrapolation: false,
+            friction_relaxation: false,
             newton_test: NewtonTestSpec::Nodes,
             retry_other_projection: true,
             max_substeps: 1024,

@@ -152,6 +152,8 @@ fn non_physical_values_are_named() {
         &v,
         &["solver.factor_cg_iterations", "must be from 1 to 100000"],
     );
+    v["solver"] = json!({ "friction_relaxation": "yes" });
+    expect_error(&v, &["solver.friction_relaxation", "expected a boolean"]);
     let mut v: Value = serde_json::from_str(
         &std::fs::read_to_string(
             Path::new(env!("CARGO_MANIFEST_DIR")).join("../../fixtures/scenes/augury_blocks.json"),
