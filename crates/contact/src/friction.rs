@@ -237,16 +237,26 @@ pub fn closest_point_frame<const D: usize>(
 }
 
 /// Build the lagged friction terms from the contact terms at the lagged state.
+///
+/// A term's normal force is `λ = −w b'(d)`. The duplicate-removal terms of the barrier (BFEMP
+/// eqs. 31–32: an edge or vertex subtracted where the facets around it both count a particle)
+/// have negative weights: each is netted against the particle's positive term whose feature
+/// contains its vertices and is farthest from the particle (the one that meets it where its own
+/// Voronoi region ends), so that a facet term entering or leaving near a concave edge changes
+/// the normal forces continuously, as the barrier does, instead of adding or removing a whole
+/// λ. Terms with no positive force left are not lagged. `terms` hold each particle's terms
+/// together (as [`ContactPotential::collect_terms`] writes them).
 pub fn lag<const D: usize>(
     potential: &ContactPotential<D>,
     terms: &[ContactTerm],
     particles: &[SVector<f64, D>],
     boundary: &[SVector<f64, D>],
 ) -> Vec<FrictionTerm<D>> {
+    let lambda = net_normal_forces(potential, terms);
     terms
         .par_iter()
-        .filter_map(|t| {
-            let lambda = -t.weight * potential.barrier.first(t.sq_dist.sqrt());
+        .zip(lambda.par_iter())
+        .filter_map(|(t, &lambda)| {
             if !(lambda > 0.0) {
                 return None;
             }
@@ -263,6 +273,52 @@ pub fn lag<const D: usize>(
             })
         })
         .collect()
+}
+
+/// Each term's normal force `−w b'(d)`, the duplicate-removal (negative) ones netted against
+/// a positive term of the same particle ([`lag`]); a netted or negative force is ≤ 0.
+pub fn net_normal_forces<const D: usize>(
+    potential: &ContactPotential<D>,
+    terms: &[ContactTerm],
+) -> Vec<f64> {
+    let raw: Vec<f64> = terms
+        .par_iter()
+        .map(|t| -t.weight * potential.barrier.first(t.sq_dist.sqrt()))
+        .collect();
+    let mut net = raw.clone();
+    let mut start = 0;
+    while start < terms.len() {
+        let q = terms[start].particle;
+        let end = terms[start..]
+            .iter()
+            .position(|t| t.particle != q)
+            .map_or(terms.len(), |k| start + k);
+        for j in start..end {
+            if !(raw[j] < 0.0) {
+                continue;
+            }
+            let (inner, ni) = terms[j].feature.vertices();
+            let contains = |i: usize| {
+                let (outer, no) = terms[i].feature.vertices();
+                no > ni && inner[..ni].iter().all(|v| outer[..no].contains(v))
+            };
+            // The farthest positive term around it; ties go to the first.
+            let mut best: Option<usize> = None;
+            for i in start..end {
+                if raw[i] > 0.0
+                    && contains(i)
+                    && best.is_none_or(|b| terms[i].sq_dist > terms[b].sq_dist)
+                {
+                    best = Some(i);
+                }
+            }
+            if let Some(i) = best {
+                net[i] += raw[j];
+            }
+        }
+        start = end;
+    }
+    net
 }
 
 impl<const D: usize> FrictionTerm<D> {

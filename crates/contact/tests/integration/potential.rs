@@ -743,3 +743,104 @@ fn many_particles_collect_each_particles_terms_in_order() {
         "{e}"
     );
 }
+
+/// The lagged friction's normal forces of one particle over a valley — two facets meeting at a
+/// concave edge (3D) or vertex (2D) with slope `s` — at `y` across the shared feature: the sum
+/// of the terms' λ, the number of terms, and the magnitude of the barrier's force on the
+/// particle (central differences of the barrier energy).
+fn valley_forces<const D: usize>(s: f64, y: f64, h: f64) -> (f64, usize, f64) {
+    let (v, f): (Vec<SVector<f64, D>>, Vec<[u32; 3]>) = if D == 3 {
+        let v = [
+            [0.0, 0.0, 0.0],
+            [1.0, 0.0, 0.0],
+            [0.5, 1.0, s],
+            [0.5, -1.0, s],
+        ];
+        let v = v.iter().map(|p| SVector::from_fn(|i, _| p[i])).collect();
+        (v, vec![[0, 1, 2], [1, 0, 3]])
+    } else {
+        let v = [[-1.0, s], [0.0, 0.0], [1.0, s]];
+        let v = v.iter().map(|p| SVector::from_fn(|i, _| p[i])).collect();
+        (v, vec![[0, 1, 0], [1, 2, 0]])
+    };
+    let pot = ContactPotential::new(
+        LogBarrier::new(0.1, 1e3).unwrap(),
+        BoundaryTopology::<D>::new(&f, v.len()).unwrap(),
+    );
+    let at = |y: f64| -> Vec<SVector<f64, D>> {
+        let mut p = SVector::<f64, D>::zeros();
+        p[0] = if D == 3 { 0.5 } else { y };
+        if D == 3 {
+            p[1] = y;
+        }
+        p[D - 1] = h;
+        vec![p]
+    };
+    let energy = |p: &[SVector<f64, D>]| {
+        let mut c = Candidates::default();
+        broad_phase::candidates_within(p, &v, pot.topology.facets(), 0.1, &mut c);
+        let mut terms = Vec::new();
+        pot.collect_terms(p, &[1.0], &v, &c, &mut terms).unwrap();
+        (pot.energy(&terms), terms)
+    };
+    let p = at(y);
+    let (_, terms) = energy(&p);
+    let lagged = friction::lag(&pot, &terms, &p, &v);
+    let sum: f64 = lagged.iter().map(|t| t.lambda).sum();
+    let step = 1e-7;
+    let force = SVector::<f64, D>::from_fn(|a, _| {
+        let (mut plus, mut minus) = (p.clone(), p.clone());
+        plus[0][a] += step;
+        minus[0][a] -= step;
+        (energy(&plus).0 - energy(&minus).0) / (2.0 * step)
+    });
+    (sum, lagged.len(), force.norm())
+}
+
+/// Over a concave edge (3D) or vertex (2D) a particle's distance counts on both facets and
+/// the barrier subtracts the shared feature (eqs. 31–32). The lagged friction nets that
+/// subtracted term against the farther facet's: its normal forces add up to the barrier's
+/// force on the particle (not twice it), and they change continuously where the farther facet's
+/// region ends — there its term leaves with zero force instead of a whole λ (which made the
+/// friction loop cycle in the §6.7 twist).
+#[test]
+fn friction_normal_forces_over_a_concave_feature_are_the_barriers_and_continuous() {
+    fn check<const D: usize>() {
+        // Net normal forces meet the barrier's to second order in the slope (the facets'
+        // normals differ by s): |Σλ − |F|| ≤ 2 s² |F| (without the netting Σλ ≈ 2 |F|).
+        let (s, h) = (0.05, 0.02);
+        let tol = 2.0 * s * s;
+        // Straight above the shared feature: both facets' terms and the subtracted one.
+        let (sum, n, force) = valley_forces::<D>(s, 0.0, h);
+        assert_eq!(n, 2, "{D}D: both facets lagged");
+        assert!(
+            (sum - force).abs() <= tol * force,
+            "{D}D: Σλ = {sum:e} against the barrier's force {force:e}"
+        );
+        // Where the farther facet's region ends (y* = s h for this valley), from both sides.
+        let y_star = s * h;
+        let before = valley_forces::<D>(s, y_star - 1e-9, h);
+        let after = valley_forces::<D>(s, y_star + 1e-9, h);
+        assert_eq!(
+            (before.1, after.1),
+            (2, 1),
+            "{D}D: the farther facet's term leaves"
+        );
+        assert!(
+            (before.0 - after.0).abs() <= 1e-5 * after.0,
+            "{D}D: Σλ jumps from {:e} to {:e}",
+            before.0,
+            after.0
+        );
+        assert!(
+            (after.0 - after.2).abs() <= tol * after.2,
+            "{D}D: {after:?}"
+        );
+        assert!(
+            (before.0 - before.2).abs() <= tol * before.2,
+            "{D}D: {before:?}"
+        );
+    }
+    check::<2>();
+    check::<3>();
+}
