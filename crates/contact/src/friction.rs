@@ -240,11 +240,10 @@ pub fn closest_point_frame<const D: usize>(
 ///
 /// A term's normal force is `λ = −w b'(d)`. The duplicate-removal terms of the barrier (BFEMP
 /// eqs. 31–32: an edge or vertex subtracted where the facets around it both count a particle)
-/// have negative weights: each is netted against the particle's positive term whose feature
-/// contains its vertices and is farthest from the particle (the one that meets it where its own
-/// Voronoi region ends), so that a facet term entering or leaving near a concave edge changes
-/// the normal forces continuously, as the barrier does, instead of adding or removing a whole
-/// λ. Terms with no positive force left are not lagged. `terms` hold each particle's terms
+/// have negative weights: each is netted against the particle's positive terms whose features
+/// contain its vertices ([`net_normal_forces`]), so that a facet term entering or leaving near
+/// a concave edge changes the normal forces continuously, as the barrier does, instead of
+/// adding or removing a whole λ. Terms with no positive force left are not lagged. `terms` hold each particle's terms
 /// together (as [`ContactPotential::collect_terms`] writes them).
 pub fn lag<const D: usize>(
     potential: &ContactPotential<D>,
@@ -276,16 +275,22 @@ pub fn lag<const D: usize>(
 }
 
 /// Each term's normal force `−w b'(d)`, the duplicate-removal (negative) ones netted against
-/// a positive term of the same particle ([`lag`]); a netted or negative force is ≤ 0.
+/// the particle's positive terms around them ([`lag`]); a netted or negative force is ≤ 0.
+///
+/// A subtracted force `λ_s` (its feature's vertices all on each term `i` of the group `G`
+/// around it, `λ_i ≥ λ_s` as `d_i ≤ d_s`) leaves the group `Σ_G λ_i − λ_s`, shared as
+/// `e_i + (Σ_G λ_i − λ_s − Σ e) e_i / Σ e` with the excesses `e_i = max(0, λ_i − λ_s)`: a term
+/// whose region ends at the subtracted feature (`d_i = d_s`) keeps nothing, and the shares
+/// change continuously with the distances (equal shares if every excess is 0).
 pub fn net_normal_forces<const D: usize>(
     potential: &ContactPotential<D>,
     terms: &[ContactTerm],
 ) -> Vec<f64> {
-    let raw: Vec<f64> = terms
+    let mut net: Vec<f64> = terms
         .par_iter()
         .map(|t| -t.weight * potential.barrier.first(t.sq_dist.sqrt()))
         .collect();
-    let mut net = raw.clone();
+    let mut group: Vec<usize> = Vec::new();
     let mut start = 0;
     while start < terms.len() {
         let q = terms[start].particle;
@@ -294,26 +299,29 @@ pub fn net_normal_forces<const D: usize>(
             .position(|t| t.particle != q)
             .map_or(terms.len(), |k| start + k);
         for j in start..end {
-            if !(raw[j] < 0.0) {
+            let sub = -net[j];
+            if !(sub > 0.0) {
                 continue;
             }
             let (inner, ni) = terms[j].feature.vertices();
-            let contains = |i: usize| {
+            group.clear();
+            group.extend((start..end).filter(|&i| {
                 let (outer, no) = terms[i].feature.vertices();
-                no > ni && inner[..ni].iter().all(|v| outer[..no].contains(v))
-            };
-            // The farthest positive term around it; ties go to the first.
-            let mut best: Option<usize> = None;
-            for i in start..end {
-                if raw[i] > 0.0
-                    && contains(i)
-                    && best.is_none_or(|b| terms[i].sq_dist > terms[b].sq_dist)
-                {
-                    best = Some(i);
-                }
+                net[i] > 0.0 && no > ni && inner[..ni].iter().all(|v| outer[..no].contains(v))
+            }));
+            if group.is_empty() {
+                continue;
             }
-            if let Some(i) = best {
-                net[i] += raw[j];
+            let total: f64 = group.iter().map(|&i| net[i]).sum();
+            let left = (total - sub).max(0.0);
+            let excess: f64 = group.iter().map(|&i| (net[i] - sub).max(0.0)).sum();
+            for &i in &group {
+                let e = (net[i] - sub).max(0.0);
+                net[i] = if excess > 0.0 {
+                    e + (left - excess).max(0.0) * e / excess
+                } else {
+                    left / group.len() as f64
+                };
             }
         }
         start = end;

@@ -799,8 +799,8 @@ fn valley_forces<const D: usize>(s: f64, y: f64, h: f64) -> (f64, usize, f64) {
 
 /// Over a concave edge (3D) or vertex (2D) a particle's distance counts on both facets and
 /// the barrier subtracts the shared feature (eqs. 31–32). The lagged friction nets that
-/// subtracted term against the farther facet's: its normal forces add up to the barrier's
-/// force on the particle (not twice it), and they change continuously where the farther facet's
+/// subtracted term against the facets' terms: its normal forces add up to the barrier's force
+/// on the particle (not twice it), and they change continuously where the farther facet's
 /// region ends — there its term leaves with zero force instead of a whole λ (which made the
 /// friction loop cycle in the §6.7 twist).
 #[test]

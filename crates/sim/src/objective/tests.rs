@@ -590,10 +590,10 @@ fn check_friction_fixed_point<const D: usize>(
         "{D}D: {} operators lagged half way",
         report.relaxed_lags
     );
-    // The loop ends on a solve to the full tolerance.
+    // The loop ends on a solve to the full tolerance (or stationary to working precision).
     assert!(
-        report.stats.final_residual < tol,
-        "{D}D, forcing {forcing}: the last solve stopped at {:e} m/s",
+        report.stats.final_residual < tol || report.stats.ended_at_roundoff,
+        "{D}D, forcing {forcing}: the last solve stopped at {:e} m/s: {report:?}",
         report.stats.final_residual
     );
     assert!(

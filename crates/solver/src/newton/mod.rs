@@ -304,6 +304,7 @@ impl Newton {
         let flat = at_targets && -gp <= ROUNDOFF * scale;
         if state.stagnation.stalled(flat && !converged, pmax) {
             state.stats.roundoff_stops += 1;
+            state.stats.ended_at_roundoff = true;
             self.record(state, (solved.exact, reused_before, gp, params.dt), None);
             return Ok(Progress::Done);
         }
@@ -326,6 +327,7 @@ impl Newton {
         // change is below round-off but x still improves.)
         if search.accepted == Some(state.e) && search.alpha < 1.0 && within_roundoff {
             state.stats.roundoff_stops += 1;
+            state.stats.ended_at_roundoff = true;
             return Ok(Progress::Done);
         }
         state.reuse.after_line_search(
@@ -352,6 +354,7 @@ impl Newton {
                 // No step decreases the energy and the predicted decrease is round-off:
                 // stationary to working precision.
                 state.stats.roundoff_stops += 1;
+                state.stats.ended_at_roundoff = true;
                 return Ok(Progress::Done);
             }
             None => {

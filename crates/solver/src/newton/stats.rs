@@ -32,6 +32,9 @@ pub struct SolveStats {
     /// tolerance: the predicted decrease `−gᵀp` stayed below `ROUNDOFF·|E|` while ‖p‖ stopped
     /// shrinking, or no step decreased the energy and `−gᵀp ≤ 10⁴·ROUNDOFF·|E|`.
     pub roundoff_stops: usize,
+    /// The (last) solve ended as stationary to working precision (a round-off stop), not at
+    /// the tolerance.
+    pub ended_at_roundoff: bool,
     /// Full Newton steps taken on the gradient's word: no step length decreased the energy,
     /// but the full step was feasible, raised the energy by at most 10× (`GRADIENT_STEP_RISE`)
     /// the predicted decrease `−gᵀp` and at least halved the free gradient — the energy's
@@ -112,6 +115,7 @@ impl std::ops::AddAssign<&SolveStats> for SolveStats {
         self.final_energy = s.final_energy;
         self.regularizations += s.regularizations;
         self.roundoff_stops += s.roundoff_stops;
+        self.ended_at_roundoff = s.ended_at_roundoff;
         self.gradient_steps += s.gradient_steps;
         self.exact_iterations += s.exact_iterations;
         self.reused_hessians += s.reused_hessians;
