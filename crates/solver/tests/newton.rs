@@ -1585,7 +1585,7 @@ fn solve_statistics_add_up() {
         reused_hessians: k,
         exact_rejections: k,
         roundoff_stops: k,
-        ended_at_roundoff: k % 2 == 0,
+        ended_at_roundoff: k.is_multiple_of(2),
         gradient_steps: k,
         lagged_updates: k,
         symbolic_analyses: k,
