@@ -237,9 +237,9 @@ fn parse_args(args: &[String]) -> Result<Option<Args>> {
                 let kv = it
                     .next()
                     .with_context(|| format!("--set needs KEY=VALUE\n{USAGE}"))?;
-                let (key, value) = crate::settings::split(kv)
+                let (key, value) = settings::split(kv)
                     .with_context(|| format!("`--set {kv}` is not KEY=VALUE\n{USAGE}"))?;
-                set.push((key.to_string(), crate::settings::value(value)));
+                set.push((key.to_string(), settings::value(value)));
             }
             "--only" => {
                 while let Some(n) = it.next_if(|n| !n.starts_with("--")) {
@@ -306,9 +306,10 @@ pub fn main(args: &[String]) -> Result<()> {
     let commit = git_describe();
     let settings = settings::labels(&set);
     let out = out.unwrap_or_else(|| {
-        let dir = match set.is_empty() {
-            true => tier.name().to_string(),
-            false => format!("{}-set", tier.name()),
+        let dir = if set.is_empty() {
+            tier.name().to_string()
+        } else {
+            format!("{}-set", tier.name())
         };
         root.join("target/validation").join(dir)
     });
