@@ -1797,6 +1797,63 @@ fn recorded_iterations_say_what_each_newton_iteration_did() {
     assert_eq!(last.bound, (1.0, None));
 }
 
+/// [`LinearSolver::LastFactorCg`] with exact Hessians (`ExactWhenDefinite`): on the
+/// mass-dominated step every exact Hessian is positive definite and the later iterations solve
+/// them by CG preconditioned with the first factor — the Cholesky solve's minimiser and
+/// iteration count, every iteration exact, fewer factorisations. Without a mass term the exact
+/// Hessian is indefinite: CG meets non-positive curvature or fails, the factorisation then
+/// rejects it, the projected Hessian is used, and the solve still reaches the equilibrium with
+/// exact Hessians once the chain hangs in tension.
+#[test]
+fn last_factor_cg_solves_exact_hessians_and_leaves_indefinite_ones_to_the_factorisation() {
+    let solve = |linear: LinearSolver| {
+        let (x, stats, _, factorisations) =
+            chain_step_solve(2.0e4, HessianStrategy::ExactWhenDefinite, linear, 0.0, true);
+        (x, stats, factorisations)
+    };
+    let (xc, sc, fc) = solve(LinearSolver::Cholesky);
+    let (xg, sg, fg) = solve(LinearSolver::LastFactorCg {
+        rtol: 1e-10,
+        max_iterations: 40,
+    });
+    assert!(sc.iterations >= 3, "{sc:?}");
+    for (a, b) in xc.iter().zip(&xg) {
+        assert!((a - b).abs() < 1e-10, "{a} vs {b}");
+    }
+    assert_eq!(sg.iterations, sc.iterations, "{sg:?} vs {sc:?}");
+    assert_eq!(sg.exact_iterations, sg.iterations, "{sg:?}");
+    assert_eq!(sg.exact_rejections, 0, "{sg:?}");
+    assert_eq!(fc, sc.iterations);
+    assert!(fg < fc && sg.pcg_iterations > 0, "{fg} of {fc}: {sg:?}");
+
+    let n = 12;
+    let (mut chain, mut x, fixed) = crumpled_chain(n);
+    let mut newton = Newton::new();
+    let stats = newton
+        .minimize(
+            &mut chain,
+            &mut x,
+            &fixed,
+            &NewtonParams {
+                tolerance: 1e-12,
+                hessian: HessianStrategy::ExactWhenDefinite,
+                linear: LinearSolver::LastFactorCg {
+                    rtol: 1e-10,
+                    max_iterations: 40,
+                },
+                ..Default::default()
+            },
+        )
+        .unwrap();
+    assert!(stats.exact_rejections >= 1, "{stats:?}");
+    assert!(stats.exact_iterations >= 1, "{stats:?}");
+    assert!(
+        stats.pcg_fallbacks >= 1 && stats.pcg_iterations > 0,
+        "{stats:?}"
+    );
+    assert_hangs_in_equilibrium(&chain, &x);
+}
+
 /// [`LinearSolver::LastFactorCg`] on the crumpled chain's implicit step (projected Hessians):
 /// the first iteration factorises, the later ones solve their own Hessians by CG preconditioned
 /// with that factor — the same minimiser and Newton iteration count as Cholesky, with fewer

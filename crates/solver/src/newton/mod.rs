@@ -465,13 +465,14 @@ impl Newton {
             }
         };
         let hessian_s = t.elapsed().as_secs_f64();
-        // CG preconditioned with the last factor: for a projected Hessian, once this solve
-        // has a factor.
+        // CG preconditioned with the last factor, once this solve has a factor: for a
+        // projected Hessian, and for an exact one, which CG rejects if it meets non-positive
+        // curvature (then its factorisation decides).
         let last_factor = match problem.params.linear {
             LinearSolver::LastFactorCg {
                 rtol,
                 max_iterations,
-            } if reuse.is_none() && !cg && !exact && self.factor_ready && nf > 0 => {
+            } if reuse.is_none() && !cg && self.factor_ready && nf > 0 => {
                 Some((rtol, max_iterations))
             }
             _ => None,
@@ -673,23 +674,41 @@ impl Newton {
             factorized,
             last_factor,
         } = matrix;
+        let mut factorized = factorized;
         if let Some((rtol, max_iterations)) = last_factor {
             self.prescribed_part(problem.fixed, problem.target, x);
-            if !self.last_factor_cg(state, rtol, max_iterations) {
-                // Factorise this matrix (its pattern analysed first) and solve directly;
-                // `rhs` still holds the right-hand side.
-                state.stats.pcg_fallbacks += 1;
-                self.lin
-                    .ensure_analysed()
-                    .and_then(|()| self.lin.chol.factorize(&mut self.lin.csc))
-                    .map_err(Failure::Linear)?;
-                self.factor_ready = true;
-                self.lin.chol.solve_in_place(&mut self.rhs);
+            if self.last_factor_cg(state, rtol, max_iterations) {
+                // CG met only positive curvature: a descent direction of the exact model too.
+                if exact {
+                    state.exact.accepted(&mut state.stats);
+                }
+                return Ok(Solved {
+                    exact,
+                    loose: false,
+                });
             }
-            return Ok(Solved {
-                exact: false,
-                loose: false,
-            });
+            // Factorise this matrix (its pattern analysed first) and solve directly; `rhs`
+            // still holds the right-hand side. An exact one may turn out indefinite: then the
+            // projected one is factorised below.
+            state.stats.pcg_fallbacks += 1;
+            self.lin.ensure_analysed().map_err(Failure::Linear)?;
+            factorized = if exact {
+                self.lin.chol.try_factorize(&mut self.lin.csc)
+            } else {
+                self.lin.chol.factorize(&mut self.lin.csc).map(|()| true)
+            }
+            .map_err(Failure::Linear)?;
+            if factorized {
+                self.factor_ready = true;
+                if exact {
+                    state.exact.accepted(&mut state.stats);
+                }
+                self.lin.chol.solve_in_place(&mut self.rhs);
+                return Ok(Solved {
+                    exact,
+                    loose: false,
+                });
+            }
         }
         if exact {
             if factorized {

@@ -138,8 +138,9 @@ pub enum LinearSolver {
     /// factorises. The directions are Newton's to `rtol` — the iteration counts are those of
     /// [`LinearSolver::Cholesky`] — at the price of a triangular solve and a product per CG
     /// iteration instead of a factorisation: for large 3D systems, whose factorisations cost
-    /// tens of triangular solves. Exact Hessians ([`HessianStrategy::ExactWhenDefinite`]) are
-    /// factorised as with Cholesky.
+    /// tens of triangular solves. Exact Hessians ([`HessianStrategy::ExactWhenDefinite`]) too:
+    /// one on which CG meets non-positive curvature (or fails) is factorised, and rejected if
+    /// that fails — CG that meets only positive curvature gives a descent direction.
     LastFactorCg {
         /// Relative reduction of the preconditioned residual.
         rtol: f64,
