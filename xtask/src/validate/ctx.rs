@@ -312,17 +312,17 @@ mod tests {
         use femp::scene::ProjectionSpec;
         let plain = ctx(&[]);
         let set = ctx(&[
-            ("solver.projection", "when_indefinite"),
+            ("solver.projection", "always"),
             ("solver.friction_forcing", "0.5"),
         ]);
         let twist = plain.fixture("twist").unwrap();
-        assert_eq!(twist.solver.projection, ProjectionSpec::Always);
+        assert_eq!(twist.solver.projection, ProjectionSpec::WhenIndefinite);
         let s = set.scene("twist", &twist).unwrap();
-        assert_eq!(s.spec().solver.projection, ProjectionSpec::WhenIndefinite);
+        assert_eq!(s.spec().solver.projection, ProjectionSpec::Always);
         assert_eq!(s.spec().solver.friction_forcing, 0.5);
         // Everything else as it was.
         let mut back = s.spec().clone();
-        back.solver.projection = ProjectionSpec::Always;
+        back.solver.projection = ProjectionSpec::WhenIndefinite;
         back.solver.friction_forcing = 0.0;
         assert_eq!(
             back.to_json(),

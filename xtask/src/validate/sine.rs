@@ -184,8 +184,8 @@ impl Experiment for Sine {
                     ));
                     if r.summary.retried_steps > 0 {
                         out.notes.push(format!(
-                            "{tag}: {} step(s) failed their first Newton solve (projected Newton) and \
-                             were solved again with the exact Hessian when definite \
+                            "{tag}: {} step(s) failed their first Newton solve and were solved \
+                             again with the other `solver.projection` \
                              (`solver.retry_other_projection`; docs/bfemp.md, Known limits).",
                             r.summary.retried_steps
                         ));

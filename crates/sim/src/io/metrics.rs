@@ -69,7 +69,7 @@ pub struct Metrics {
     /// Newton iterations whose initial step was cut by CCD.
     pub ccd_limited: usize,
     /// Newton iterations that factorised the exact Hessian (`solver.projection:
-    /// "when_indefinite"`; 0 with the default `"always"`).
+    /// "when_indefinite"`, the default; 0 with `"always"`).
     pub exact_hessians: usize,
     /// Newton iterations that reused the previous iteration's Hessian
     /// (`solver.reuse_hessian_below`).

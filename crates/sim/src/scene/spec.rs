@@ -286,11 +286,11 @@ pub enum OrderingSpec {
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Deserialize, Serialize)]
 #[serde(rename_all = "snake_case")]
 pub enum NewtonTestSpec {
-    /// The largest increment of any unknown — grid node or FEM vertex (BFEMP §5).
-    #[default]
+    /// The largest increment of any unknown — grid node or FEM vertex (BFEMP §5's test).
     Nodes,
     /// The largest increment of what the unknowns move: each particle's position and, times
-    /// the grid spacing, its deformation gradient; each FEM vertex.
+    /// the grid spacing, its deformation gradient; each FEM vertex. The default.
+    #[default]
     Points,
 }
 
@@ -313,10 +313,10 @@ pub enum LinearSpec {
 #[serde(rename_all = "snake_case")]
 pub enum ProjectionSpec {
     /// Every iteration (projected Newton; the papers' method).
-    #[default]
     Always,
     /// Only when the exact Hessian of the whole system is indefinite: an iteration factorises
-    /// the exact one if it is positive definite, else the projected one.
+    /// the exact one if it is positive definite, else the projected one. The default.
+    #[default]
     WhenIndefinite,
 }
 
@@ -326,7 +326,7 @@ impl Default for SolverSpec {
             tolerance: 1e-4,
             max_newton_iterations: 100,
             max_friction_iterations: 20,
-            projection: ProjectionSpec::Always,
+            projection: ProjectionSpec::WhenIndefinite,
             linear: LinearSpec::Cholesky,
             pcg_rtol: 1e-6,
             pcg_max_iterations: 200,
@@ -338,7 +338,7 @@ impl Default for SolverSpec {
             friction_forcing: 0.0,
             friction_extrapolation: false,
             friction_relaxation: false,
-            newton_test: NewtonTestSpec::Nodes,
+            newton_test: NewtonTestSpec::Points,
             retry_other_projection: true,
             max_substeps: 1024,
             ordering: OrderingSpec::Auto,

@@ -365,10 +365,12 @@ fn slope_sticks_and_slides_with_friction_updated_in_newton_and_the_point_test() 
 }
 
 /// The same accelerations with inexact friction solves while the operator moves
-/// (`solver.friction_forcing`): the loop still ends at the fully implicit fixed point.
+/// (`solver.friction_forcing`): the loop still ends at the fully implicit fixed point. With
+/// Newton's test on the unknowns: with the test on the points (the default) the 2D slope's
+/// first contact step does not converge in 100 iterations (docs/scenes.md, `friction_forcing`).
 #[test]
 fn slope_sticks_and_slides_with_inexact_friction_solves() {
-    let extra = r#", "friction_forcing": 0.5"#;
+    let extra = r#", "friction_forcing": 0.5, "newton_test": "nodes""#;
     check_slope_with(2, extra);
     check_slope_with(3, extra);
 }
@@ -635,12 +637,17 @@ fn a_step_whose_solve_fails_is_solved_again_with_the_other_projection() {
 /// body's lumped mass — and recording stops when asked.
 #[test]
 fn recorded_newton_iterations_name_the_unknown_of_the_largest_increment() {
-    // The plate is free here, so both kinds of unknown move.
-    let json = block_on_plate(0.01, 1.0).replace(
-        r#", "prescribed": [ { "vertices": "all", "motion": [] } ]"#,
-        "",
-    );
-    assert!(!json.contains("prescribed"));
+    // The plate is free here, so both kinds of unknown move; Newton's test on the unknowns.
+    let json = block_on_plate(0.01, 1.0)
+        .replace(
+            r#", "prescribed": [ { "vertices": "all", "motion": [] } ]"#,
+            "",
+        )
+        .replace(
+            r#""tolerance": 1e-5 }"#,
+            r#""tolerance": 1e-5, "newton_test": "nodes" }"#,
+        );
+    assert!(!json.contains("prescribed") && json.contains(r#""nodes""#));
     let s = scene::parse(&json, "t.json", ".".into(), "t").unwrap();
     let mut w = femp::World::<2>::build(s).unwrap();
     assert!(w.record_newton_iterations(true));
@@ -651,7 +658,7 @@ fn recorded_newton_iterations_name_the_unknown_of_the_largest_increment() {
         assert_eq!(r.largest_increments.len(), r.newton_iterations);
         assert_eq!(r.stats.trace[0].iteration, 1);
         for (rec, on) in r.stats.trace.iter().zip(&r.largest_increments) {
-            // The default convergence test is the largest increment itself.
+            // The test on the unknowns is the largest increment itself.
             assert_eq!(rec.increment, rec.largest.1, "{rec:?}");
             match *on {
                 femp::Unknown::GridNode { axis, mass, .. } => {
