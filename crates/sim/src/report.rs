@@ -38,8 +38,9 @@ pub struct StepReport {
     pub friction_iterations: usize,
     /// Friction operators lagged at an extrapolated point (`solver.friction_extrapolation`).
     pub extrapolated_lags: usize,
-    /// Friction operators lagged half way once the loop stopped contracting
-    /// (`solver.friction_relaxation`).
+    /// Friction operators lagged short of the solve's point: half way once the loop stopped
+    /// contracting (`solver.friction_relaxation`), or by Aitken's factor ω < 1
+    /// (`solver.friction_aitken`).
     pub relaxed_lags: usize,
     /// Iterations of the augury contact step (its velocity corrections; 0 for BFEMP).
     pub augury_iterations: usize,

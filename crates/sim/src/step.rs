@@ -362,6 +362,7 @@ impl Bfemp {
             forcing: solver.friction_forcing,
             extrapolate: solver.friction_extrapolation,
             relax: solver.friction_relaxation.then_some(1.0),
+            aitken: solver.friction_aitken,
         };
         let (step, time) = (clock.step, clock.time);
         let failed = |(e, j): (femp_solver::SolveError, usize)| match e {
@@ -989,6 +990,7 @@ pub(crate) fn friction_loop<const D: usize>(
     // contracting (then every later operator is lagged half way).
     let mut last_change: Option<f64> = None;
     let mut relaxing = false;
+    let mut aitken = AitkenRelaxation::default();
     loop {
         // Half a solve's iterations at most update the operator: the rest converge on it.
         obj.lag.limit = obj.lag.count + params.max_iterations / 2;
@@ -1024,7 +1026,21 @@ pub(crate) fn friction_loop<const D: usize>(
             .is_some_and(|ratio| last_change.is_some_and(|p| change >= ratio * p));
         last_change = Some(change);
         let previous = plain_change.filter(|_| policy.extrapolate && !relaxing);
-        if relaxing && relaxed_lag(obj, x, &mut lag_point) {
+        let omega = if policy.aitken {
+            obj.lag_residual(x, &mut aitken.current);
+            aitken.next_factor()
+        } else {
+            1.0
+        };
+        if policy.aitken {
+            let relaxed = omega < 1.0 && lag_along(obj, x, omega - 1.0, &mut lag_point);
+            if relaxed {
+                report.relaxed_lags += 1;
+            } else {
+                obj.lag_friction(x);
+            }
+            aitken.used(if relaxed { omega } else { 1.0 });
+        } else if relaxing && relaxed_lag(obj, x, &mut lag_point) {
             report.relaxed_lags += 1;
             plain_change = None;
         } else if extrapolated_lag(obj, x, previous, change, &mut lag_point) {
@@ -1125,6 +1141,60 @@ pub(crate) struct FrictionPolicy {
     /// `solver.friction_relaxation`: relax once a solve's change is at least this times the
     /// previous solve's (1 from the scene: once the loop stops contracting).
     pub(crate) relax: Option<f64>,
+    /// `solver.friction_aitken`: Aitken's dynamic relaxation of every lag after the first.
+    pub(crate) aitken: bool,
+}
+
+/// Aitken's dynamic relaxation of a fixed-point iteration (Irons & Tuck 1969; as Küttler & Wall
+/// 2008 use it for partitioned fluid–structure loops): with `d_k` the residual of iterate `k`
+/// (the solve's points minus where its operator was evaluated) and `ω_{k−1}` the factor the
+/// last lag used, the next lag is at `lag + ω_k d_k`, `ω_k = −ω_{k−1} d_{k−1}·(d_k − d_{k−1}) /
+/// ‖d_k − d_{k−1}‖²`. For a residual that flips sign (a loop that oscillates, `d_k ≈ −ρ
+/// d_{k−1}`) that is `ω_{k−1}/(1 + ρ)`; for one that shrinks steadily (`d_k ≈ r d_{k−1}`)
+/// `ω_{k−1}/(1 − r)`. Clamped to `[OMEGA_MIN, 1]`: it damps, it never extrapolates (that is
+/// `friction_extrapolation`'s, which the twist's switching contacts did not reward).
+#[derive(Debug, Default)]
+pub(crate) struct AitkenRelaxation {
+    /// The factor the last lag used (1 for a plain lag).
+    omega: f64,
+    /// The last residual and the current one (point coordinates).
+    previous: Vec<f64>,
+    pub(crate) current: Vec<f64>,
+    /// Whether `previous` holds a residual.
+    have_previous: bool,
+}
+
+impl AitkenRelaxation {
+    /// The smallest factor.
+    pub(crate) const OMEGA_MIN: f64 = 1.0 / 16.0;
+
+    /// The factor for the next lag from the residual just measured into `current`, remembering
+    /// it as `previous`. The first residual of a loop gives 1.
+    pub(crate) fn next_factor(&mut self) -> f64 {
+        let omega = if self.have_previous {
+            let (mut num, mut den) = (0.0, 0.0);
+            for (p, c) in self.previous.iter().zip(&self.current) {
+                let delta = c - p;
+                num += p * delta;
+                den += delta * delta;
+            }
+            if den > 0.0 && den.is_finite() && num.is_finite() {
+                (-self.omega * num / den).clamp(Self::OMEGA_MIN, 1.0)
+            } else {
+                1.0
+            }
+        } else {
+            1.0
+        };
+        std::mem::swap(&mut self.previous, &mut self.current);
+        self.have_previous = true;
+        omega
+    }
+
+    /// The factor the lag actually used (1 where the relaxed point was not feasible).
+    pub(crate) fn used(&mut self, omega: f64) {
+        self.omega = omega;
+    }
 }
 
 /// Start `x` at the predictor `x_hat` (targets for prescribed DOFs) when the straight path

@@ -109,6 +109,7 @@ class Solver(_Spec):
     friction_forcing: Optional[float] = None
     friction_extrapolation: Optional[bool] = None
     friction_relaxation: Optional[bool] = None
+    friction_aitken: Optional[bool] = None
     newton_test: Optional[str] = None
     retry_other_projection: Optional[bool] = None
     ordering: Optional[str] = None

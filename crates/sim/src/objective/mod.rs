@@ -226,6 +226,17 @@ impl<'a, const D: usize> StepObjective<'a, D> {
             .fold(0.0, f64::max)
     }
 
+    /// The points' fixed-point residual at `x`: each particle's and FEM vertex's position minus
+    /// where the friction operator last saw it, coordinates in a row, into `out`.
+    pub(crate) fn lag_residual(&mut self, x: &[f64], out: &mut Vec<f64>) {
+        self.unpack(x);
+        let now = self.cfg.xq.iter().chain(self.cfg.fem_x.iter().flatten());
+        out.clear();
+        for (a, b) in now.zip(&self.lag.points) {
+            out.extend((a - b).iter());
+        }
+    }
+
     /// The contact force of every pair at `x` ([`Contact::pair_forces`]).
     pub(crate) fn pair_forces(
         &mut self,

@@ -535,14 +535,15 @@ fn contact_only_objective_is_inertia_and_barrier_3d() {
 /// operator moves (`solver.friction_forcing`), and with the operator lagged at Aitken's
 /// extrapolation (`solver.friction_extrapolation`, which must then have been used), and with
 /// the operator lagged half way from the second solve on (`solver.friction_relaxation`, its
-/// trigger forced: these loops contract). Stopping one friction iteration early, ending on an
-/// inexact solve or on an extrapolated or relaxed operator, or measuring the fixed point on
-/// grid nodes a particle barely touches, fails it.
+/// trigger forced: these loops contract), and with Aitken's dynamic relaxation
+/// (`solver.friction_aitken`). Stopping one friction iteration early, ending on an inexact
+/// solve or on an extrapolated or relaxed operator, or measuring the fixed point on grid nodes
+/// a particle barely touches, fails it.
 fn check_friction_fixed_point<const D: usize>(
     json: &str,
     below: f64,
     forcing: f64,
-    (extrapolate, relax): (bool, bool),
+    (extrapolate, relax, aitken): (bool, bool, bool),
 ) {
     use crate::step::{FrictionPolicy, friction_loop};
     use femp_solver::{Newton, NewtonParams};
@@ -573,6 +574,7 @@ fn check_friction_fixed_point<const D: usize>(
             forcing,
             extrapolate,
             relax: relax.then_some(0.0),
+            aitken,
         },
         &mut report,
     )
@@ -584,12 +586,14 @@ fn check_friction_fixed_point<const D: usize>(
         "{D}D: {} operators lagged at an extrapolated point",
         report.extrapolated_lags
     );
-    assert_eq!(
-        report.relaxed_lags > 0,
-        relax,
-        "{D}D: {} operators lagged half way",
-        report.relaxed_lags
-    );
+    if !aitken {
+        assert_eq!(
+            report.relaxed_lags > 0,
+            relax,
+            "{D}D: {} operators lagged half way",
+            report.relaxed_lags
+        );
+    }
     // The loop ends on a solve to the full tolerance (or stationary to working precision).
     assert!(
         report.stats.final_residual < tol || report.stats.ended_at_roundoff,
@@ -611,24 +615,76 @@ fn check_friction_fixed_point<const D: usize>(
     assert!(
         moved < 2.0 * tol,
         "{D}D, update below {below}, forcing {forcing}, extrapolated {extrapolate}, relaxed \
-         {relax}: a further friction iteration moves a point by {moved:e} m/s"
+         {relax}, Aitken {aitken}: a further friction iteration moves a point by {moved:e} m/s"
     );
 }
 
 #[test]
 fn friction_loop_ends_at_its_fixed_point() {
-    for (below, forcing, extrapolate, relax) in [
-        (0.0, 0.0, false, false),
-        (1e-2, 0.0, false, false),
-        (0.0, 0.1, false, false),
-        (0.0, 0.5, false, false),
-        (0.0, 0.0, true, false),
-        (0.0, 0.5, true, false),
-        (0.0, 0.0, false, true),
-        (0.0, 0.5, false, true),
+    for (below, forcing, extrapolate, relax, aitken) in [
+        (0.0, 0.0, false, false, false),
+        (1e-2, 0.0, false, false, false),
+        (0.0, 0.1, false, false, false),
+        (0.0, 0.5, false, false, false),
+        (0.0, 0.0, true, false, false),
+        (0.0, 0.5, true, false, false),
+        (0.0, 0.0, false, true, false),
+        (0.0, 0.5, false, true, false),
+        (0.0, 0.0, false, false, true),
+        (0.0, 0.5, false, false, true),
     ] {
-        check_friction_fixed_point::<2>(SCENE_2D, below, forcing, (extrapolate, relax));
-        check_friction_fixed_point::<3>(SCENE_3D, below, forcing, (extrapolate, relax));
+        let how = (extrapolate, relax, aitken);
+        check_friction_fixed_point::<2>(SCENE_2D, below, forcing, how);
+        check_friction_fixed_point::<3>(SCENE_3D, below, forcing, how);
+    }
+}
+
+/// Aitken's dynamic relaxation ([`crate::step::AitkenRelaxation`]) on linear fixed-point
+/// iterations `y ← A y + b` (the lag at `y`, the solve's answer `A y + b`): where the plain
+/// iteration oscillates and barely contracts (eigenvalues −0.95 and −0.9) or cycles (−1), the
+/// relaxed one reaches the fixed point to 1e-10 within 12 iterations, its factors in
+/// `[1/16, 1]` and below 1; where the plain one contracts monotonically (0.5 and 0.3) the
+/// factor stays 1 — the plain iteration itself. A sign error in the factor, or no clamp,
+/// fails it.
+#[test]
+fn aitken_relaxation_damps_an_oscillating_fixed_point_loop_and_leaves_a_contracting_one() {
+    use crate::step::AitkenRelaxation;
+    let run = |a: [f64; 2], max: usize| -> (usize, Vec<f64>) {
+        let b = [1.0, -2.0];
+        let fixed = [b[0] / (1.0 - a[0]), b[1] / (1.0 - a[1])];
+        let mut lag = [0.0, 0.0];
+        let mut relax = AitkenRelaxation::default();
+        let mut factors = Vec::new();
+        for k in 1..=max {
+            let x = [a[0] * lag[0] + b[0], a[1] * lag[1] + b[1]];
+            if (x[0] - fixed[0]).abs().max((x[1] - fixed[1]).abs()) < 1e-10 {
+                return (k, factors);
+            }
+            relax.current.clear();
+            relax.current.extend([x[0] - lag[0], x[1] - lag[1]]);
+            let w = relax.next_factor();
+            factors.push(w);
+            relax.used(w);
+            lag = [lag[0] + w * (x[0] - lag[0]), lag[1] + w * (x[1] - lag[1])];
+        }
+        (max + 1, factors)
+    };
+    for a in [[-0.95, -0.9], [-1.0, -1.0], [-0.95, -0.95]] {
+        let (k, factors) = run(a, 12);
+        assert!(
+            k <= 12,
+            "{a:?}: not converged in 12 relaxed iterations: {factors:?}"
+        );
+        assert!(
+            factors[1..]
+                .iter()
+                .all(|&w| (AitkenRelaxation::OMEGA_MIN..1.0).contains(&w)),
+            "{a:?}: {factors:?}"
+        );
+    }
+    for a in [[0.5, 0.3], [0.5, 0.5]] {
+        let (_, factors) = run(a, 60);
+        assert!(factors.iter().all(|&w| w == 1.0), "{a:?}: {factors:?}");
     }
 }
 

@@ -255,6 +255,12 @@ pub struct SolverSpec {
     /// last point to the solve's `x` (averaged fixed-point iteration; the same fixed points).
     #[serde(skip_serializing_if = "is_false")]
     pub friction_relaxation: bool,
+    /// Lag every operator after the first at `lag + ω (x − lag)` with Aitken's dynamic factor
+    /// (Irons–Tuck) `ω_k = −ω_{k−1} d_{k−1}·(d_k − d_{k−1}) / ‖d_k − d_{k−1}‖²`, `d` the
+    /// points' fixed-point residual, clamped to [1/16, 1]: a loop that oscillates is damped, one
+    /// that contracts monotonically is lagged as plain (the same fixed points).
+    #[serde(skip_serializing_if = "is_false")]
+    pub friction_aitken: bool,
     /// What Newton's convergence test measures the increment on.
     pub newton_test: NewtonTestSpec,
     /// When a step's Newton solve fails (iteration limit, stalled line search), solve the step
@@ -338,6 +344,7 @@ impl Default for SolverSpec {
             friction_forcing: 0.0,
             friction_extrapolation: false,
             friction_relaxation: false,
+            friction_aitken: false,
             newton_test: NewtonTestSpec::Points,
             retry_other_projection: true,
             max_substeps: 1024,

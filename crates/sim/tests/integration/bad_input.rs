@@ -154,6 +154,10 @@ fn non_physical_values_are_named() {
     );
     v["solver"] = json!({ "friction_relaxation": "yes" });
     expect_error(&v, &["solver.friction_relaxation", "expected a boolean"]);
+    v["solver"] = json!({ "friction_aitken": true, "friction_relaxation": true });
+    expect_error(&v, &["solver.friction_aitken", "set only one of them"]);
+    v["solver"] = json!({ "friction_aitken": true, "friction_extrapolation": true });
+    expect_error(&v, &["solver.friction_aitken", "set only one of them"]);
     let mut v: Value = serde_json::from_str(
         &std::fs::read_to_string(
             Path::new(env!("CARGO_MANIFEST_DIR")).join("../../fixtures/scenes/augury_blocks.json"),
