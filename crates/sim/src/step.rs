@@ -1026,13 +1026,9 @@ pub(crate) fn friction_loop<const D: usize>(
             .is_some_and(|ratio| last_change.is_some_and(|p| change >= ratio * p));
         last_change = Some(change);
         let previous = plain_change.filter(|_| policy.extrapolate && !relaxing);
-        let omega = if policy.aitken {
-            obj.lag_residual(x, &mut aitken.current);
-            aitken.next_factor()
-        } else {
-            1.0
-        };
         if policy.aitken {
+            obj.lag_residual(x, &mut aitken.current);
+            let omega = aitken.next_factor();
             let relaxed = omega < 1.0 && lag_along(obj, x, omega - 1.0, &mut lag_point);
             if relaxed {
                 report.relaxed_lags += 1;
@@ -1153,7 +1149,7 @@ pub(crate) struct FrictionPolicy {
 /// d_{k−1}`) that is `ω_{k−1}/(1 + ρ)`; for one that shrinks steadily (`d_k ≈ r d_{k−1}`)
 /// `ω_{k−1}/(1 − r)`. Clamped to `[OMEGA_MIN, 1]`: it damps, it never extrapolates (that is
 /// `friction_extrapolation`'s, which the twist's switching contacts did not reward).
-#[derive(Debug, Default)]
+#[derive(Debug)]
 pub(crate) struct AitkenRelaxation {
     /// The factor the last lag used (1 for a plain lag).
     omega: f64,
@@ -1162,6 +1158,18 @@ pub(crate) struct AitkenRelaxation {
     pub(crate) current: Vec<f64>,
     /// Whether `previous` holds a residual.
     have_previous: bool,
+}
+
+impl Default for AitkenRelaxation {
+    /// A loop's start: no residual yet, the first lag plain.
+    fn default() -> Self {
+        Self {
+            omega: 1.0,
+            previous: Vec::new(),
+            current: Vec::new(),
+            have_previous: false,
+        }
+    }
 }
 
 impl AitkenRelaxation {
