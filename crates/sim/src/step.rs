@@ -362,7 +362,7 @@ impl Bfemp {
             forcing: solver.friction_forcing,
             extrapolate: solver.friction_extrapolation,
             relax: solver.friction_relaxation.then_some(1.0),
-            aitken: solver.friction_aitken,
+            aitken: solver.aitken(),
         };
         let (step, time) = (clock.step, clock.time);
         let failed = |(e, j): (femp_solver::SolveError, usize)| match e {

@@ -795,11 +795,14 @@ fn solver(solver: &SolverSpec) -> Result<(), SimError> {
             format!("{} must be in [0, 1)", solver.friction_forcing),
         ));
     }
-    if solver.friction_aitken && (solver.friction_relaxation || solver.friction_extrapolation) {
+    if solver.friction_aitken == Some(true)
+        && (solver.friction_relaxation || solver.friction_extrapolation)
+    {
         return Err(invalid(
             "solver.friction_aitken",
             "chooses where each friction operator is lagged, as friction_relaxation and \
-             friction_extrapolation do: set only one of them"
+             friction_extrapolation do: set only one of them (with either, Aitken's relaxation \
+             is off unless set)"
                 .to_string(),
         ));
     }

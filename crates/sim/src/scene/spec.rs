@@ -258,9 +258,11 @@ pub struct SolverSpec {
     /// Lag every operator after the first at `lag + ω (x − lag)` with Aitken's dynamic factor
     /// (Irons–Tuck) `ω_k = −ω_{k−1} d_{k−1}·(d_k − d_{k−1}) / ‖d_k − d_{k−1}‖²`, `d` the
     /// points' fixed-point residual, clamped to [1/16, 1]: a loop that oscillates is damped, one
-    /// that contracts monotonically is lagged as plain (the same fixed points).
-    #[serde(skip_serializing_if = "is_false")]
-    pub friction_aitken: bool,
+    /// that contracts monotonically is lagged as plain (the same fixed points). `None`: on,
+    /// unless `friction_relaxation` or `friction_extrapolation` chooses the lags instead
+    /// ([`SolverSpec::aitken`]).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub friction_aitken: Option<bool>,
     /// What Newton's convergence test measures the increment on.
     pub newton_test: NewtonTestSpec,
     /// When a step's Newton solve fails (iteration limit, stalled line search), solve the step
@@ -326,6 +328,15 @@ pub enum ProjectionSpec {
     WhenIndefinite,
 }
 
+impl SolverSpec {
+    /// Whether the friction loop lags with Aitken's dynamic relaxation: as set, else unless
+    /// `friction_relaxation` or `friction_extrapolation` is on.
+    pub fn aitken(&self) -> bool {
+        self.friction_aitken
+            .unwrap_or(!(self.friction_relaxation || self.friction_extrapolation))
+    }
+}
+
 impl Default for SolverSpec {
     fn default() -> Self {
         Self {
@@ -344,7 +355,7 @@ impl Default for SolverSpec {
             friction_forcing: 0.0,
             friction_extrapolation: false,
             friction_relaxation: false,
-            friction_aitken: false,
+            friction_aitken: None,
             newton_test: NewtonTestSpec::Points,
             retry_other_projection: true,
             max_substeps: 1024,
@@ -1104,6 +1115,22 @@ mod tests {
 
     fn read<T: serde::de::DeserializeOwned>(json: &str) -> T {
         serde_json::from_str(json).unwrap()
+    }
+
+    /// Aitken's relaxation of the friction loop is on by default, off where the scene chooses
+    /// the lags otherwise or turns it off; explicitly on with another choice is refused by
+    /// validation (bad_input).
+    #[test]
+    fn aitken_is_the_default_unless_the_lags_are_chosen_otherwise() {
+        let on = |json: &str| read::<SolverSpec>(json).aitken();
+        assert!(on("{}"));
+        assert!(on(r#"{"friction_aitken": true}"#));
+        assert!(!on(r#"{"friction_aitken": false}"#));
+        assert!(!on(r#"{"friction_relaxation": true}"#));
+        assert!(!on(r#"{"friction_extrapolation": true}"#));
+        assert!(!on(
+            r#"{"friction_relaxation": true, "friction_aitken": false}"#
+        ));
     }
 
     /// Each constructor's defaults are those of a scene file that leaves the fields out.

@@ -158,6 +158,12 @@ fn non_physical_values_are_named() {
     expect_error(&v, &["solver.friction_aitken", "set only one of them"]);
     v["solver"] = json!({ "friction_aitken": true, "friction_extrapolation": true });
     expect_error(&v, &["solver.friction_aitken", "set only one of them"]);
+    // Either alone is accepted (Aitken's relaxation, the default, is then off).
+    for other in ["friction_relaxation", "friction_extrapolation"] {
+        let mut w = v.clone();
+        w["solver"] = json!({ other: true });
+        assert_eq!(error_of(&w, Path::new(".")), None, "{other} alone");
+    }
     let mut v: Value = serde_json::from_str(
         &std::fs::read_to_string(
             Path::new(env!("CARGO_MANIFEST_DIR")).join("../../fixtures/scenes/augury_blocks.json"),
