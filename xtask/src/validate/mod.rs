@@ -60,7 +60,47 @@ struct Experiment {
     /// Quick-tier wall time measured in CI (clean clone at a5494da, 2-core Intel Xeon 2.0 GHz;
     /// twist and buckling as trimmed on 2026-12-03, measured with `--only twist buckling
     /// --jobs 2`): balances `--jobs` when the output directory has no saved outcome to go by.
+    /// For an experiment of the full tier only, its full-tier wall time on that machine instead.
     quick_s: f64,
+    /// The tiers it belongs to.
+    runs: Runs,
+}
+
+/// Which runs of the suite an experiment belongs to.
+#[derive(Clone, Copy, PartialEq, Eq, Debug)]
+enum Runs {
+    /// Both tiers.
+    Always,
+    /// The full tier only (the quick tier neither runs nor lists it).
+    Full,
+    /// The full tier, only when named by `--only` (hours a case); listed once it has an outcome.
+    FullWhenNamed,
+}
+
+impl Experiment {
+    /// Whether `tier` runs this experiment when `--only` does not name it.
+    fn by_default(&self, tier: Tier) -> bool {
+        match self.runs {
+            Runs::Always => true,
+            Runs::Full => tier == Tier::Full,
+            Runs::FullWhenNamed => false,
+        }
+    }
+
+    /// Whether `tier` can run it at all.
+    fn in_tier(&self, tier: Tier) -> bool {
+        self.runs == Runs::Always || tier == Tier::Full
+    }
+
+    /// The wall time to expect in `tier` with no saved outcome to go by (only the order of
+    /// these matters: `--jobs` balances by them).
+    fn expected_s(&self, tier: Tier) -> f64 {
+        match (self.runs, tier) {
+            (Runs::Always, Tier::Quick) => self.quick_s,
+            (Runs::Always, Tier::Full) => 30.0 * self.quick_s,
+            _ => self.quick_s,
+        }
+    }
 }
 
 const EXPERIMENTS: &[Experiment] = &[
@@ -70,6 +110,7 @@ const EXPERIMENTS: &[Experiment] = &[
         title: "MPM ring vs FEM ring at 40 m/s: momentum, energy, non-penetration",
         run: experiment::drive::<rings::Rings>,
         quick_s: 180.0,
+        runs: Runs::Always,
     },
     Experiment {
         name: "sine_boundary",
@@ -77,6 +118,7 @@ const EXPERIMENTS: &[Experiment] = &[
         title: "FEM sine-wave boundary vs level-set slip boundary",
         run: experiment::drive::<sine::Sine>,
         quick_s: 110.0,
+        runs: Runs::Always,
     },
     Experiment {
         name: "hertz",
@@ -84,6 +126,7 @@ const EXPERIMENTS: &[Experiment] = &[
         title: "Brazilian disk: force vs contact radius against 2D Hertz",
         run: experiment::drive::<hertz::Hertz>,
         quick_s: 20.0,
+        runs: Runs::Always,
     },
     Experiment {
         name: "slope",
@@ -91,6 +134,7 @@ const EXPERIMENTS: &[Experiment] = &[
         title: "Stiff MPM box on a frictional FEM slope: g(sinθ − μcosθ), sticking at μ = tanθ",
         run: experiment::drive::<slope::Slope>,
         quick_s: 42.0,
+        runs: Runs::Always,
     },
     Experiment {
         name: "refinement",
@@ -98,6 +142,7 @@ const EXPERIMENTS: &[Experiment] = &[
         title: "MPM box on FEM box under refinement: convergence order",
         run: experiment::drive::<refinement::Refinement>,
         quick_s: 54.0,
+        runs: Runs::Always,
     },
     Experiment {
         name: "buckling",
@@ -105,13 +150,32 @@ const EXPERIMENTS: &[Experiment] = &[
         title: "Semicircular rings compressed: buckling order vs μ",
         run: experiment::drive::<buckling::Buckling>,
         quick_s: 176.0,
+        runs: Runs::Always,
     },
     Experiment {
         name: "twist",
         section: "BFEMP 6.7",
         title: "3D shell twisting an MPM cube: slip angles vs μ",
-        run: experiment::drive::<twist::Twist>,
+        run: experiment::drive::<twist::Twist<twist::Fixture>>,
         quick_s: 158.0,
+        runs: Runs::Always,
+    },
+    Experiment {
+        name: "twist_fine",
+        section: "BFEMP 6.7",
+        title: "3D shell twisting an MPM cube at h = 0.125: slip angles vs μ",
+        run: experiment::drive::<twist::Twist<twist::Fine>>,
+        // Four μ on one thread with other runs alongside, new defaults (2026-12-06).
+        quick_s: 9000.0,
+        runs: Runs::Full,
+    },
+    Experiment {
+        name: "twist_paper",
+        section: "BFEMP 6.7",
+        title: "3D shell twisting an MPM cube at the paper's h = 0.0625: μ = 0.2 and 1",
+        run: experiment::drive::<twist::Twist<twist::Paper>>,
+        quick_s: 40000.0,
+        runs: Runs::FullWhenNamed,
     },
     Experiment {
         name: "two_particles",
@@ -119,6 +183,7 @@ const EXPERIMENTS: &[Experiment] = &[
         title: "Two particles in one cell, APIC vs PIC",
         run: experiment::drive::<augury::TwoParticles>,
         quick_s: 0.1,
+        runs: Runs::Always,
     },
     Experiment {
         name: "blocks_impact",
@@ -126,6 +191,7 @@ const EXPERIMENTS: &[Experiment] = &[
         title: "Two blocks impacting at an angle: exact momenta",
         run: experiment::drive::<augury::blocks::Blocks>,
         quick_s: 32.0,
+        runs: Runs::Always,
     },
     Experiment {
         name: "ramp",
@@ -133,6 +199,7 @@ const EXPERIMENTS: &[Experiment] = &[
         title: "Block sliding down a 30° ramp",
         run: experiment::drive::<augury::ramp::Ramp>,
         quick_s: 41.0,
+        runs: Runs::Always,
     },
     Experiment {
         name: "augury_speed",
@@ -140,6 +207,7 @@ const EXPERIMENTS: &[Experiment] = &[
         title: "Speed: augury contact against the search-based penalty baseline, 10³–10⁶ nodes",
         run: experiment::drive::<speed::Speed>,
         quick_s: 5.0,
+        runs: Runs::Always,
     },
     Experiment {
         name: "compare",
@@ -147,6 +215,7 @@ const EXPERIMENTS: &[Experiment] = &[
         title: "Speed vs accuracy: block sliding down a ramp, BFEMP / augury / penalty",
         run: experiment::drive::<compare::Compare>,
         quick_s: 90.0,
+        runs: Runs::Always,
     },
     Experiment {
         name: "disk_plates",
@@ -154,6 +223,7 @@ const EXPERIMENTS: &[Experiment] = &[
         title: "Speed vs accuracy: a disk pressed between plates (Hertz), BFEMP / augury / penalty",
         run: experiment::drive::<disk::Disk>,
         quick_s: 86.0,
+        runs: Runs::Always,
     },
     Experiment {
         name: "stability",
@@ -161,6 +231,7 @@ const EXPERIMENTS: &[Experiment] = &[
         title: "Stability maps: time step against impact speed",
         run: experiment::drive::<stability::Stability>,
         quick_s: 7.0,
+        runs: Runs::Always,
     },
     Experiment {
         name: "fixtures",
@@ -168,6 +239,7 @@ const EXPERIMENTS: &[Experiment] = &[
         title: "Every fixtures/scenes/*.json runs to completion as committed",
         run: experiment::drive::<fixtures::Fixtures>,
         quick_s: 45.0,
+        runs: Runs::Always,
     },
 ];
 
@@ -252,7 +324,12 @@ fn parse_args(args: &[String]) -> Result<Option<Args>> {
             "-h" | "--help" => {
                 println!("{USAGE}\n\nexperiments:");
                 for e in EXPERIMENTS {
-                    println!("  {:14} {:11} {}", e.name, e.section, e.title);
+                    let tiers = match e.runs {
+                        Runs::Always => "",
+                        Runs::Full => " [full tier]",
+                        Runs::FullWhenNamed => " [full tier, only when named]",
+                    };
+                    println!("  {:14} {:11} {}{tiers}", e.name, e.section, e.title);
                 }
                 return Ok(None);
             }
@@ -269,9 +346,12 @@ fn parse_args(args: &[String]) -> Result<Option<Args>> {
         bail!("--report runs nothing; it cannot be combined with --only\n{USAGE}");
     }
     for n in &only {
-        if !EXPERIMENTS.iter().any(|e| e.name == n) {
+        let Some(e) = EXPERIMENTS.iter().find(|e| e.name == n) else {
             let names: Vec<_> = EXPERIMENTS.iter().map(|e| e.name).collect();
             bail!("no experiment `{n}`; experiments: {}", names.join(", "));
+        };
+        if !e.in_tier(tier) {
+            bail!("`{n}` runs in the full tier only: `--full --only {n}`\n{USAGE}");
         }
     }
     Ok(Some(Args {
@@ -322,18 +402,24 @@ pub fn main(args: &[String]) -> Result<()> {
     let started = Instant::now();
     let mut done = Vec::new();
     let mut ran = 0;
-    let is_selected =
-        |name: &str| !report_only && (only.is_empty() || only.iter().any(|n| n == name));
-    let selected: Vec<&'static str> = EXPERIMENTS
-        .iter()
-        .map(|e| e.name)
-        .filter(|n| is_selected(n))
-        .collect();
+    let selected = selection(tier, &only, report_only);
     let parallel = jobs > 1 && selected.len() > 1 && !worker;
     if parallel {
         run_workers(&selected, jobs, tier, &out, &set)?;
     }
+    // Experiments run only when named: listed once they have an outcome in `out`.
+    let mut unnamed = Vec::new();
     for e in EXPERIMENTS {
+        if !e.in_tier(tier) {
+            continue;
+        }
+        if e.runs == Runs::FullWhenNamed
+            && !selected.contains(&e.name)
+            && load(&out, e.name, tier, &settings)?.is_none()
+        {
+            unnamed.push(e.name);
+            continue;
+        }
         if parallel {
             // Run by a worker: a missing outcome means the worker died before saving it.
             let fresh = selected.contains(&e.name);
@@ -348,7 +434,7 @@ pub fn main(args: &[String]) -> Result<()> {
             ran += usize::from(fresh);
             continue;
         }
-        if !is_selected(e.name) {
+        if !selected.contains(&e.name) {
             done.push(Done::saved(e, load(&out, e.name, tier, &settings)?, false));
             continue;
         }
@@ -410,7 +496,7 @@ pub fn main(args: &[String]) -> Result<()> {
         }
         return Ok(());
     }
-    report::write(&out, tier, &done, &settings)?;
+    report::write(&out, tier, &done, &unnamed, &settings)?;
     println!("report: {}", out.join("README.md").display());
     if (tier == Tier::Full && only.is_empty() && !report_only && set.is_empty()) || publish {
         let docs = match tier {
@@ -428,6 +514,23 @@ pub fn main(args: &[String]) -> Result<()> {
         bail!("{failed} check(s) failed");
     }
     Ok(())
+}
+
+/// The experiments to run: those `only` names, else those `tier` runs by default (none with
+/// `--report`), in the registry's order.
+fn selection(tier: Tier, only: &[String], report_only: bool) -> Vec<&'static str> {
+    EXPERIMENTS
+        .iter()
+        .filter(|e| {
+            !report_only
+                && if only.is_empty() {
+                    e.by_default(tier)
+                } else {
+                    only.iter().any(|n| n == e.name)
+                }
+        })
+        .map(|e| e.name)
+        .collect()
 }
 
 /// Least-squares slope of the line through `(x, y)` points.
@@ -577,6 +680,49 @@ mod tests {
         // Without `--set` nothing is written of settings (outcomes as before).
         let text = save_demo(&[]);
         assert!(!text.contains("settings"), "{text}");
+    }
+
+    /// The quick tier neither runs nor accepts the full-tier-only twists; the full tier runs
+    /// `twist_fine` by default and `twist_paper` only when named.
+    #[test]
+    fn each_tier_runs_its_experiments() {
+        let find = |n: &str| EXPERIMENTS.iter().find(|e| e.name == n).unwrap();
+        let args = |a: &[&str]| a.iter().map(|s| s.to_string()).collect::<Vec<_>>();
+        for (name, quick, full) in [
+            ("twist", true, true),
+            ("twist_fine", false, true),
+            ("twist_paper", false, false),
+        ] {
+            let e = find(name);
+            assert_eq!(e.by_default(Tier::Quick), quick, "{name}");
+            assert_eq!(e.by_default(Tier::Full), full, "{name}");
+            assert!(e.in_tier(Tier::Full), "{name}");
+            assert_eq!(e.in_tier(Tier::Quick), quick, "{name}");
+        }
+        for n in ["twist_fine", "twist_paper"] {
+            let err = parse_args(&args(&["--only", n]))
+                .err()
+                .expect(n)
+                .to_string();
+            assert!(err.contains("full tier only"), "{err}");
+            let ok = parse_args(&args(&["--full", "--only", n]))
+                .unwrap()
+                .unwrap();
+            assert_eq!(ok.only, [n]);
+        }
+        // Every experiment but the one run only when named is in the full tier's default run;
+        // naming it runs it; `--report` runs nothing.
+        let full = selection(Tier::Full, &[], false);
+        assert_eq!(full.len(), EXPERIMENTS.len() - 1);
+        assert!(!full.contains(&"twist_paper"));
+        let quick = selection(Tier::Quick, &[], false);
+        assert_eq!(quick.len(), EXPERIMENTS.len() - 2);
+        assert!(!quick.contains(&"twist_fine"));
+        assert_eq!(
+            selection(Tier::Full, &args(&["twist_paper", "rings"]), false),
+            ["rings", "twist_paper"]
+        );
+        assert!(selection(Tier::Full, &[], true).is_empty());
     }
 
     #[test]

@@ -278,9 +278,27 @@ fn experiment_sections(s: &mut String, out: &Path, tier: Tier, done: &[Done]) {
 }
 
 /// Write `out/README.md`.
-pub fn write(out: &Path, tier: Tier, done: &[Done], settings: &[String]) -> Result<()> {
+/// `unnamed`: experiments run only when `--only` names them that have no outcome in `out`.
+pub fn write(
+    out: &Path,
+    tier: Tier,
+    done: &[Done],
+    unnamed: &[&str],
+    settings: &[String],
+) -> Result<()> {
     let mut s = String::new();
     introduction(&mut s, tier, done);
+    if !unnamed.is_empty() {
+        let _ = writeln!(
+            s,
+            "Run only when named (hours a run), not run here: {}.\n",
+            unnamed
+                .iter()
+                .map(|n| format!("{n} (`cargo xtask validate --full --only {n}`)"))
+                .collect::<Vec<_>>()
+                .join(", ")
+        );
+    }
     if !settings.is_empty() {
         let _ = writeln!(
             s,

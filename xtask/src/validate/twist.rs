@@ -8,7 +8,15 @@
 //! with μ = 1.
 //!
 //! Measured: the twist angle of the cube's top under the shell (particles that start in the top
-//! cell layer at 0.1–0.45 m from the axis; the mean of their rotation about the axis).
+//! cell layer at 0.1–0.45 m from the axis; the mean of their rotation about the axis). On a grid
+//! finer than the fixture's, the same measure over the fixture's top 0.25 m too, so that the
+//! resolutions are compared on one region.
+//!
+//! Three experiments share this code ([`Grid`]): `twist` runs the fixture as committed (h =
+//! 0.25), `twist_fine` at h = 0.125 (the full tier only) and `twist_paper` at the paper's h =
+//! 0.0625 (only when named: hours a run).
+
+use std::marker::PhantomData;
 
 use anyhow::Result;
 use nalgebra::Vector3;
@@ -20,6 +28,9 @@ use super::experiment::Experiment;
 use super::{Check, Ctx, Outcome, Pictures, Status, Tier, contact, mpm_grid};
 
 const OMEGA: f64 = std::f64::consts::PI / 5.0;
+
+/// The fixture's grid spacing: the depth of the top layer every resolution is also measured on.
+const FIXTURE_LAYER: f64 = 0.25;
 
 /// The shell's prescribed twist at time `t`.
 fn shell_angle(t: f64) -> f64 {
@@ -33,11 +44,12 @@ struct Top {
 }
 
 impl Top {
-    fn of(x: &[Vector3<f64>], h: f64) -> Self {
+    /// The particles that start within `depth` of the top, 0.1–0.45 m from the axis.
+    fn of(x: &[Vector3<f64>], depth: f64) -> Self {
         let ids: Vec<usize> = (0..x.len())
             .filter(|&p| {
                 let r = x[p].xy().norm();
-                x[p][2] > 1.0 - h && (0.1..0.45).contains(&r)
+                x[p][2] > 1.0 - depth && (0.1..0.45).contains(&r)
             })
             .collect();
         let start = ids.iter().map(|&p| x[p][1].atan2(x[p][0])).collect();
@@ -59,9 +71,69 @@ impl Top {
     }
 }
 
-/// BFEMP §6.7.
-#[derive(Default)]
-pub(super) struct Twist;
+/// The resolution one of the §6.7 experiments runs at, and its μ per tier.
+pub(super) trait Grid {
+    /// The grid spacing; `None`: the fixture's.
+    const H: Option<f64>;
+    /// The chart's file name stem.
+    const STEM: &'static str;
+    /// The μ a tier runs (none: the experiment is not part of that tier).
+    fn mus(tier: Tier) -> &'static [f64];
+}
+
+/// The fixture's h = 0.25: quick (1.5 s at Δt = 5e-2, frictionless and μ = 1; at 2e-2 μ = 1 took
+/// 3 808 Newton iterations, 211 s, against 2 358, 108 s, at 5e-2) and full (the paper's Δt and
+/// 5.5 s for its four μ — its μ = 0.5 run is exactly `femp run fixtures/scenes/twist.json`).
+pub(super) struct Fixture;
+
+impl Grid for Fixture {
+    const H: Option<f64> = None;
+    const STEM: &'static str = "twist";
+    fn mus(tier: Tier) -> &'static [f64] {
+        match tier {
+            Tier::Quick => &[0.0, 1.0],
+            Tier::Full => &[0.0, 0.2, 0.5, 1.0],
+        }
+    }
+}
+
+/// h = 0.125 (4 096 particles), the paper's Δt and 5.5 s, its four μ: the full tier only.
+pub(super) struct Fine;
+
+impl Grid for Fine {
+    const H: Option<f64> = Some(0.125);
+    const STEM: &'static str = "twist_fine";
+    fn mus(tier: Tier) -> &'static [f64] {
+        match tier {
+            Tier::Quick => &[],
+            Tier::Full => &[0.0, 0.2, 0.5, 1.0],
+        }
+    }
+}
+
+/// The paper's h = 0.0625 (32 768 particles at our 8 a cell) for μ = 0.2 and 1 (issue 40): the
+/// full tier, only when named (`--only twist_paper`).
+pub(super) struct Paper;
+
+impl Grid for Paper {
+    const H: Option<f64> = Some(0.0625);
+    const STEM: &'static str = "twist_paper";
+    fn mus(tier: Tier) -> &'static [f64] {
+        match tier {
+            Tier::Quick => &[],
+            Tier::Full => &[0.2, 1.0],
+        }
+    }
+}
+
+/// BFEMP §6.7 on grid `G`.
+pub(super) struct Twist<G>(PhantomData<G>);
+
+impl<G> Default for Twist<G> {
+    fn default() -> Self {
+        Self(PhantomData)
+    }
+}
 
 /// One μ: the scene (the fixture, shortened in the quick tier) and its grid spacing.
 pub(super) struct Case {
@@ -70,33 +142,34 @@ pub(super) struct Case {
     h: f64,
 }
 
+/// One sample after a step: the time, the twist of the top cell layer, and of the fixture's top
+/// layer (the same unless the grid is finer).
+type Sample = (f64, f64, f64);
+
 /// A run (or why it stopped) and the twist of the cube's top after every step, against time.
 pub(super) struct Measured {
     run: std::result::Result<femp::run::RunResult, femp::SimError>,
-    samples: Vec<(f64, f64)>,
+    samples: Vec<Sample>,
 }
 
-impl Experiment for Twist {
+impl<G: Grid> Experiment for Twist<G> {
     type Case = Case;
     type Measured = Measured;
 
     fn cases(&self, ctx: &Ctx) -> Result<Vec<Case>> {
+        let mus = G::mus(ctx.tier);
+        if mus.is_empty() {
+            return Ok(Vec::new());
+        }
         let mut spec = ctx.fixture("twist")?;
-        // The full tier runs the fixture as committed (the paper's Δt and 5.5 s on h = 0.25;
-        // the paper's 0.0625 is 91k particles and even 0.125 is hours per μ here,
-        // docs/bfemp.md) for the paper's four μ — its μ = 0.5 run is exactly
-        // `femp run fixtures/scenes/twist.json`. Quick: 1.5 s (the compression and 0.1π of
-        // twist) at Δt = 5e-2, frictionless and μ = 1 (at 2e-2 μ = 1 took 3 808 Newton
-        // iterations, 211 s, against 2 358, 108 s, at 5e-2).
+        if let Some(h) = G::H {
+            mpm_grid(&mut spec)?.grid_spacing = h;
+        }
         let h = mpm_grid(&mut spec)?.grid_spacing;
-        let mus: &[f64] = match ctx.tier {
-            Tier::Quick => {
-                spec.time.dt = 5e-2;
-                spec.time.duration = 1.5;
-                &[0.0, 1.0]
-            }
-            Tier::Full => &[0.0, 0.2, 0.5, 1.0],
-        };
+        if ctx.tier == Tier::Quick {
+            spec.time.dt = 5e-2;
+            spec.time.duration = 1.5;
+        }
         mus.iter()
             .map(|&mu| {
                 let mut spec = spec.clone();
@@ -110,13 +183,13 @@ impl Experiment for Twist {
         let (mu, h) = (c.mu, c.h);
         let label = format!("twist_mu{mu}");
         let pictures = (mu == 1.0).then(|| Pictures::keys("μ = 1", 3).gif().up(2));
-        let mut top: Option<Top> = None;
-        let (run, samples) =
-            ctx.run_scene_keep::<3, (f64, f64)>(&label, &c.spec, pictures, |w| {
-                let x = &w.bodies.mpm.as_ref().expect("the cube is MPM").x;
-                let a = top.get_or_insert_with(|| Top::of(x, h)).angle(x);
-                (w.clock.time, a)
-            })?;
+        let mut top: Option<(Top, Top)> = None;
+        let (run, samples) = ctx.run_scene_keep::<3, Sample>(&label, &c.spec, pictures, |w| {
+            let x = &w.bodies.mpm.as_ref().expect("the cube is MPM").x;
+            let (cell, fixture) =
+                top.get_or_insert_with(|| (Top::of(x, h), Top::of(x, FIXTURE_LAYER)));
+            (w.clock.time, cell.angle(x), fixture.angle(x))
+        })?;
         Ok(Measured { run, samples })
     }
 
@@ -154,8 +227,9 @@ impl Experiment for Twist {
                 r.metrics.iter().map(|m| m.penetrations).max().unwrap_or(0),
                 0,
             ));
-            let (t_end, a_end) = *samples.last().expect("steps");
+            let (t_end, a_end, top_end) = *samples.last().expect("steps");
             let a_max = samples.iter().map(|s| s.1).fold(0.0, f64::max);
+            let top_max = samples.iter().map(|s| s.2).fold(0.0, f64::max);
             maxima.push((mu, a_max));
             let shell = shell_angle(t_end);
             let pi = std::f64::consts::PI;
@@ -179,8 +253,8 @@ impl Experiment for Twist {
                     out.notes.push(format!(
                         "μ = {mu} slips (the top ends at {:.2} of the shell's angle): every μ of \
                          ours slips earlier than the paper's text says, by about one step of its μ \
-                         ladder. Not the grid (μ = 0.2 on h = 0.125 slips at 0.107π, on h = 0.25 \
-                         at 0.094π; paper 0.3π) nor the measure; docs/bfemp.md, Known limits.",
+                         ladder, on each grid run (`twist`, `twist_fine`); docs/bfemp.md, Known \
+                         limits.",
                         a_end / shell
                     ));
                 }
@@ -201,9 +275,22 @@ impl Experiment for Twist {
             }
             out.notes.push(format!(
                 "μ = {mu}: {} steps, {} Newton iterations, {:.0} s; cube twist at t = {t_end:.2} s \
-                 {a_end:.3} rad (shell {shell:.3}), largest {a_max:.3} rad.",
-                r.summary.steps, r.summary.newton_iterations, r.summary.wall_s
+                 {a_end:.3} rad (shell {shell:.3}), largest {a_max:.3} rad; {} friction loops \
+                 ended unconverged.",
+                r.summary.steps,
+                r.summary.newton_iterations,
+                r.summary.wall_s,
+                r.summary.friction_unconverged_steps
             ));
+            if h < FIXTURE_LAYER {
+                out.notes.push(format!(
+                    "μ = {mu}, measured over the top {FIXTURE_LAYER} m (the h = 0.25 grid's \
+                     layer): at the end {top_end:.3} rad = {:.2} of the shell, largest \
+                     {:.3}π.",
+                    top_end / shell,
+                    top_max / pi
+                ));
+            }
         }
         if maxima.len() == mus.len() && mus.len() > 2 {
             let increasing = maxima.windows(2).all(|w| w[1].1 > w[0].1);
@@ -227,22 +314,29 @@ impl Experiment for Twist {
     }
 
     fn charts(&self, ctx: &Ctx, runs: &[(Case, Measured)], out: &mut Outcome) -> Result<()> {
+        let Some((first, _)) = runs.first() else {
+            return Ok(());
+        };
+        let (h, duration) = (first.h, first.spec.time.duration);
         let mut series = Vec::new();
         for (k, (c, m)) in runs.iter().enumerate() {
             if m.run.is_err() {
                 continue;
             }
-            let csv: String = std::iter::once("t,twist\n".to_string())
-                .chain(m.samples.iter().map(|(t, a)| format!("{t},{a}\n")))
+            let csv: String = std::iter::once(format!("t,twist,twist_top_{FIXTURE_LAYER}\n"))
+                .chain(
+                    m.samples
+                        .iter()
+                        .map(|(t, a, top)| format!("{t},{a},{top}\n")),
+                )
                 .collect();
             std::fs::write(ctx.dir.join(format!("twist_mu{}.csv", c.mu)), csv)?;
             series.push(Series::line(
                 format!("μ = {}", c.mu),
-                m.samples.iter().map(|&(t, a)| (t, a)).collect(),
+                m.samples.iter().map(|&(t, a, _)| (t, a)).collect(),
                 k,
             ));
         }
-        let duration = runs.first().map_or(0.0, |(c, _)| c.spec.time.duration);
         series.push(Series::reference(
             "shell",
             (0..=110)
@@ -256,8 +350,8 @@ impl Experiment for Twist {
         let png = charts::write(
             &ctx.charts,
             &Chart {
-                stem: format!("twist_{}", ctx.tier.name()),
-                title: "6.7 twist: cube top against the shell".into(),
+                stem: format!("{}_{}", G::STEM, ctx.tier.name()),
+                title: format!("6.7 twist, h = {h}: cube top against the shell"),
                 x_label: "time (s)".into(),
                 y_label: "twist angle (rad)".into(),
                 series,

@@ -32,8 +32,7 @@ pub(super) fn run_workers(
         // only the order matters).
         let expected = match load(out, n, tier, &labels).ok().flatten() {
             Some(s) => s.wall_s,
-            None if tier == Tier::Quick => e.quick_s,
-            None => 30.0 * e.quick_s,
+            None => e.expected_s(tier),
         };
         cost.push((expected, n));
         let stale = out.join(n).join("outcome.json");
