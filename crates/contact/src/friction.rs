@@ -90,22 +90,6 @@ pub fn f1_prime(y: f64, eps: f64) -> f64 {
     }
 }
 
-/// The Hessian [`derivatives`] gives each friction term `μλ f₀(|u|)`.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-pub enum FrictionHessian {
-    /// The exact Hessian `μλ Tᵀ (f₁'(y) ûûᵀ + f₁(y)/y (I − ûûᵀ)) T` (PSD: f₀ is convex). Where
-    /// a point slides (`y ≥ ε`) it has no curvature along the slip: Newton's model of the
-    /// term is linear there, and a step that reverses the slip overshoots it.
-    #[default]
-    Exact,
-    /// `μλ f₁(y)/y Tᵀ T`: the isotropic curvature of the quadratic that touches `f₀(|u|)` at
-    /// `u` and lies above it everywhere (`f₀(√t)` is concave in `t`, so its tangent in `t`
-    /// majorises it — the half-quadratic/IRLS bound). At least the exact Hessian, equal to it
-    /// across the slip; Newton's model of the friction term never promises more decrease than
-    /// the term gives.
-    Majorizing,
-}
-
 /// Friction parameters.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct FrictionParams {
@@ -115,8 +99,6 @@ pub struct FrictionParams {
     pub eps_v: f64,
     /// Time step Δt > 0 (s).
     pub dt: f64,
-    /// The terms' Hessian.
-    pub hessian: FrictionHessian,
 }
 
 impl FrictionParams {
@@ -146,12 +128,7 @@ impl FrictionParams {
         if !(dt > 0.0 && dt.is_finite()) {
             return bad("dt", dt, "the time step must be positive");
         }
-        Ok(Self {
-            mu,
-            eps_v,
-            dt,
-            hessian: FrictionHessian::Exact,
-        })
+        Ok(Self { mu, eps_v, dt })
     }
 
     /// The mollifier threshold as a displacement, `ε = ε_v Δt`.
@@ -423,14 +400,7 @@ pub fn derivatives<const D: usize>(
                 };
             let g = tu * (s * f1_over_y(y, eps));
             // M in the tangent frame, then T M Tᵀ in space.
-            let tmt = if params.hessian == FrictionHessian::Majorizing {
-                let b = f1_over_y(y, eps);
-                let mut r = t.basis[0] * t.basis[0].transpose() * b;
-                if D == 3 {
-                    r += t.basis[1] * t.basis[1].transpose() * b;
-                }
-                r
-            } else if D == 2 {
+            let tmt = if D == 2 {
                 t.basis[0] * t.basis[0].transpose() * f1_prime(y, eps)
             } else {
                 let (a, b) = (f1_prime(y, eps), f1_over_y(y, eps));

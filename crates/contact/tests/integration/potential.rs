@@ -488,17 +488,10 @@ fn penetration_and_bad_input_are_errors() {
     assert!(FrictionParams::new(0.1, 0.0, 1e-2).is_err());
 }
 
-/// Particles, cube vertices, lagged friction terms and parameters ([`cube_friction`]).
-type CubeFriction = (
-    Vec<Vector3<f64>>,
-    Vec<Vector3<f64>>,
-    Vec<friction::FrictionTerm<3>>,
-    FrictionParams,
-);
-
-/// Two particles near a unit cube's faces with their lagged friction terms, the cube's
-/// vertices, and 3D friction parameters with ε = 1e-5 m.
-fn cube_friction() -> CubeFriction {
+/// Friction: gradient and Hessian against finite differences of the friction energy, in the
+/// sticking (|u| < ε) and sliding regimes, 2D and 3D; force opposes sliding with magnitude μλ.
+#[test]
+fn friction_derivatives_and_direction() {
     let (v, f) = cube();
     let pot = ContactPotential::new(
         LogBarrier::new(0.1, 1e2).unwrap(),
@@ -514,90 +507,6 @@ fn cube_friction() -> CubeFriction {
     let lagged = friction::lag(&pot, &terms, &particles, &v);
     assert_eq!(lagged.len(), terms.len());
     let params = FrictionParams::new(0.4, 1e-3, 1e-2).unwrap(); // ε = 1e-5 m
-    (particles, v, lagged, params)
-}
-
-/// The friction energy of the packed displacements `x` (particles first).
-fn friction_energy(
-    params: &FrictionParams,
-    lagged: &[friction::FrictionTerm<3>],
-    np: usize,
-    x: &DVector<f64>,
-) -> f64 {
-    let all: Vec<Vector3<f64>> = x
-        .as_slice()
-        .chunks(3)
-        .map(Vector3::from_column_slice)
-        .collect();
-    friction::energy(params, lagged, &all[..np], &all[np..])
-}
-
-/// The majorizing friction Hessian: the exact gradient, a Hessian at least the exact one, and
-/// a quadratic model that lies above the friction energy for any step — through slip
-/// reversals, from sticking and from sliding, long and short steps.
-#[test]
-fn majorizing_friction_hessian_bounds_the_friction_energy_from_above() {
-    let (particles, v, lagged, exact) = cube_friction();
-    let major = FrictionParams {
-        hessian: friction::FrictionHessian::Majorizing,
-        ..exact
-    };
-    let (np, nb) = (particles.len(), v.len());
-    let eps = exact.eps();
-    let mut rng = 0x2545_f491_4f6c_dd1du64;
-    let mut unit = || {
-        // xorshift64*: deterministic, adversarial enough with the scales below.
-        rng ^= rng >> 12;
-        rng ^= rng << 25;
-        rng ^= rng >> 27;
-        (rng.wrapping_mul(0x2545_f491_4f6c_dd1d) >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0
-    };
-    let mut checked = 0;
-    for base in [0.0, 0.3 * eps, eps, 3.0 * eps, 1e-3] {
-        let dxp: Vec<Vector3<f64>> = (0..np)
-            .map(|i| Vector3::new(1.0, -0.5 + i as f64, 0.3) * base)
-            .collect();
-        let dxb = vec![Vector3::zeros(); nb];
-        let x0 = pack(&dxp, &dxb);
-        let (mut de, mut dm) = (Vec::new(), Vec::new());
-        friction::derivatives(&exact, &lagged, &dxp, &dxb, &mut de);
-        friction::derivatives(&major, &lagged, &dxp, &dxb, &mut dm);
-        let (ge, he) = accumulate(&de, np, nb);
-        let (g, h) = accumulate(&dm, np, nb);
-        assert_eq!(g, ge, "the gradient is the exact one (base {base:e})");
-        let gap = (&h - &he).symmetric_eigen().eigenvalues.min();
-        assert!(
-            gap >= -1e-9 * h.amax(),
-            "below the exact Hessian by {gap:e}"
-        );
-        let e0 = friction_energy(&exact, &lagged, np, &x0);
-        for k in 0..400 {
-            // Steps from ε/100 to 100 ε; every fourth one reverses the slip through zero.
-            let len = eps * 10f64.powf(-2.0 + 4.0 * (k as f64 / 399.0));
-            let mut p = DVector::from_fn(x0.len(), |_, _| unit());
-            if k % 4 == 0 && base > 0.0 {
-                p = -&x0 * 2.0 + &p * (0.1 * base);
-            } else {
-                p *= len / p.norm();
-            }
-            let x = &x0 + &p;
-            let model = e0 + g.dot(&p) + 0.5 * p.dot(&(&h * &p));
-            let e = friction_energy(&exact, &lagged, np, &x);
-            assert!(
-                e <= model + 1e-12 * e0.abs().max(1e-300) + 1e-18,
-                "energy {e:e} above its model {model:e} (base {base:e}, step {k})"
-            );
-            checked += 1;
-        }
-    }
-    assert_eq!(checked, 2000);
-}
-
-/// Friction: gradient and Hessian against finite differences of the friction energy, in the
-/// sticking (|u| < ε) and sliding regimes, 2D and 3D; force opposes sliding with magnitude μλ.
-#[test]
-fn friction_derivatives_and_direction() {
-    let (particles, v, lagged, params) = cube_friction();
     let (np, nb) = (particles.len(), v.len());
     for scale in [3e-6, 1e-3] {
         // Displacements: sticking (|u| < ε) and sliding (|u| ≫ ε).

@@ -388,15 +388,13 @@ class Pair(_Spec):
 class Contact(_Spec):
     """``contact`` (BFEMP): activation distance ``dhat`` (m), barrier stiffness ``kappa``,
     Coulomb ``friction``, the static-friction velocity ``eps_v`` (m/s), the barrier Hessian
-    (``"projected"``, ``"gauss_newton"``), the friction terms' Hessian ``friction_hessian``
-    (``"exact"``, ``"majorizing"``) and per-pair ``pairs``."""
+    (``"projected"``, ``"gauss_newton"``, ``"exact"``) and per-pair ``pairs``."""
 
     dhat: float
     kappa: float
     friction: Optional[float] = None
     eps_v: Optional[float] = None
     hessian: Optional[str] = None
-    friction_hessian: Optional[str] = None
     pairs: Optional[List[Pair]] = None
 
 

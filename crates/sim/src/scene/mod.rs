@@ -9,7 +9,6 @@ pub mod spec;
 
 use std::path::{Path, PathBuf};
 
-use femp_contact::friction::FrictionHessian;
 use femp_contact::{BarrierHessian, LogBarrier};
 use femp_fem::{Lame, LinearElastic, Material, NeoHookean, material::check_density};
 use resolved::{FrictionLaw, PairLaw, Resolved};
@@ -918,10 +917,6 @@ fn pair_laws(c: &ContactSpec, names: &[&str], is_mpm: &[bool]) -> Vec<PairLaw> {
         BarrierHessianSpec::GaussNewton => BarrierHessian::GaussNewton,
         BarrierHessianSpec::Projected => BarrierHessian::Projected,
     };
-    let friction_hessian = match c.friction_hessian {
-        FrictionHessianSpec::Exact => FrictionHessian::Exact,
-        FrictionHessianSpec::Majorizing => FrictionHessian::Majorizing,
-    };
     let mut laws = Vec::new();
     for i in 0..names.len() {
         for j in i + 1..names.len() {
@@ -953,7 +948,6 @@ fn pair_laws(c: &ContactSpec, names: &[&str], is_mpm: &[bool]) -> Vec<PairLaw> {
                 friction: FrictionLaw {
                     mu: pick(|p| p.friction, c.friction),
                     eps_v: pick(|p| p.eps_v, c.eps_v),
-                    hessian: friction_hessian,
                 },
                 dhat_field,
             });

@@ -2,7 +2,7 @@
 //! made once from its section (pair settings merged with the scene's, materials as Lamé
 //! parameters, …), so that building a world cannot fail on anything the parser checked.
 
-use femp_contact::friction::{FrictionHessian, FrictionParams};
+use femp_contact::friction::FrictionParams;
 use femp_contact::{BarrierHessian, LogBarrier};
 use femp_fem::Material;
 
@@ -17,8 +17,6 @@ pub struct FrictionLaw {
     pub mu: f64,
     /// Static-friction velocity threshold ε_v (m/s).
     pub eps_v: f64,
-    /// The terms' Hessian in Newton.
-    pub hessian: FrictionHessian,
 }
 
 impl FrictionLaw {
@@ -28,7 +26,6 @@ impl FrictionLaw {
             mu: self.mu,
             eps_v: self.eps_v,
             dt,
-            hessian: self.hessian,
         }
     }
 }

@@ -866,9 +866,6 @@ pub struct ContactSpec {
     /// The barrier's Hessian in Newton: `"projected"` (default) or `"gauss_newton"`.
     #[serde(default)]
     pub hessian: BarrierHessianSpec,
-    /// The friction terms' Hessian in Newton: `"exact"` (default) or `"majorizing"`.
-    #[serde(default)]
-    pub friction_hessian: FrictionHessianSpec,
     /// Per-pair overrides.
     #[serde(default)]
     pub pairs: Vec<PairSpec>,
@@ -884,18 +881,6 @@ pub enum BarrierHessianSpec {
     /// `ω b''(d) ∇d∇dᵀ`: PSD by construction; fewer Newton iterations while particles slide
     /// along stiff facets, less robust where they switch features (see femp-contact).
     GaussNewton,
-}
-
-/// The friction terms' Hessian (femp-contact's `FrictionHessian`).
-#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Deserialize, Serialize)]
-#[serde(rename_all = "snake_case")]
-pub enum FrictionHessianSpec {
-    /// The exact Hessian of the mollified friction potential (IPC's; PSD).
-    #[default]
-    Exact,
-    /// The isotropic curvature of the quadratic bound above each term: no curvature is missing
-    /// along a slip, so Newton's steps do not overshoot a slip reversal.
-    Majorizing,
 }
 
 fn default_eps_v() -> f64 {
@@ -1074,7 +1059,6 @@ impl ContactSpec {
             friction: 0.0,
             eps_v: default_eps_v(),
             hessian: BarrierHessianSpec::default(),
-            friction_hessian: FrictionHessianSpec::default(),
             pairs: Vec::new(),
         }
     }

@@ -55,7 +55,6 @@ fn pair_settings_are_merged_once_in_scene_order() {
     let plain = FrictionLaw {
         mu: 0.2,
         eps_v: 1e-3,
-        hessian: Default::default(),
     };
     for k in [0, 2, 3] {
         assert_eq!(laws[k].barrier, default, "pair {k}");
@@ -74,8 +73,7 @@ fn pair_settings_are_merged_once_in_scene_order() {
         laws[1].friction,
         FrictionLaw {
             mu: 0.7,
-            eps_v: 1e-3,
-            hessian: Default::default(),
+            eps_v: 1e-3
         }
     );
     assert_eq!(laws[1].dhat_field, "contact.pairs[0].dhat");
