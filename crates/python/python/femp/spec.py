@@ -388,7 +388,7 @@ class Pair(_Spec):
 class Contact(_Spec):
     """``contact`` (BFEMP): activation distance ``dhat`` (m), barrier stiffness ``kappa``,
     Coulomb ``friction``, the static-friction velocity ``eps_v`` (m/s), the barrier Hessian
-    (``"projected"``, ``"gauss_newton"``, ``"exact"``) and per-pair ``pairs``."""
+    (``"projected"``, ``"gauss_newton"``) and per-pair ``pairs``."""
 
     dhat: float
     kappa: float
