@@ -181,7 +181,8 @@ impl<G: Grid> Experiment for Twist<G> {
 
     fn measure(&self, ctx: &Ctx, c: &Case) -> Result<Measured> {
         let (mu, h) = (c.mu, c.h);
-        let label = format!("twist_mu{mu}");
+        // The grid's stem keeps the three experiments' pictures apart in the shared `charts/`.
+        let label = format!("{}_mu{mu}", G::STEM);
         let pictures = (mu == 1.0).then(|| Pictures::keys("μ = 1", 3).gif().up(2));
         let mut top: Option<(Top, Top)> = None;
         let (run, samples) = ctx.run_scene_keep::<3, Sample>(&label, &c.spec, pictures, |w| {
