@@ -75,7 +75,7 @@ impl Top {
 pub(super) trait Grid {
     /// The grid spacing; `None`: the fixture's.
     const H: Option<f64>;
-    /// The chart's file name stem.
+    /// The stem of its chart and of its runs' labels (and so of their pictures).
     const STEM: &'static str;
     /// The μ a tier runs (none: the experiment is not part of that tier).
     fn mus(tier: Tier) -> &'static [f64];
