@@ -77,11 +77,11 @@ fn cell(s: &str) -> String {
 /// The report's title and introduction: when and at which commits it ran, the tier.
 fn introduction(s: &mut String, tier: Tier, done: &[Done]) {
     let _ = writeln!(s, "# Validation report ({} tier)\n", tier.name());
-    let total_s: f64 = done
+    // A fold from +0 (an empty float `sum` is −0, printed "-0").
+    let total_s = done
         .iter()
         .filter(|d| d.outcome.is_some())
-        .map(|d| d.wall_s)
-        .sum();
+        .fold(0.0, |t, d| t + d.wall_s);
     let ran: Vec<&Done> = done.iter().filter(|d| d.outcome.is_some()).collect();
     let mut times: Vec<&str> = ran.iter().map(|d| d.finished.as_str()).collect();
     times.sort_unstable();
@@ -351,4 +351,17 @@ pub fn publish(out: &Path, docs: &Path) -> Result<()> {
     }
     std::fs::write(docs.join("README.md"), report)?;
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A report of nothing run yet says its wall times add up to 0 s, not "-0 s".
+    #[test]
+    fn an_empty_report_adds_up_to_zero_seconds() {
+        let mut s = String::new();
+        introduction(&mut s, Tier::Full, &[]);
+        assert!(s.contains("add up to 0 s"), "{s}");
+    }
 }
