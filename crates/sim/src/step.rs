@@ -1010,7 +1010,14 @@ pub(crate) fn friction_loop<const D: usize>(
         if !policy.any {
             break;
         }
-        let change = obj.lag_distance(x) / params.dt;
+        // With Aitken's relaxation the residual it needs gives the change too (one unpacking
+        // of `x`): its largest coordinate is `lag_distance`.
+        let change = if policy.aitken {
+            obj.lag_residual(x, &mut aitken.current);
+            aitken.current.iter().fold(0.0, |m: f64, d| m.max(d.abs()))
+        } else {
+            obj.lag_distance(x)
+        } / params.dt;
         if change < params.tolerance && exact {
             break;
         }
@@ -1027,7 +1034,6 @@ pub(crate) fn friction_loop<const D: usize>(
         last_change = Some(change);
         let previous = plain_change.filter(|_| policy.extrapolate && !relaxing);
         if policy.aitken {
-            obj.lag_residual(x, &mut aitken.current);
             let omega = aitken.next_factor();
             let relaxed = omega < 1.0 && lag_along(obj, x, omega - 1.0, &mut lag_point);
             if relaxed {
