@@ -57,11 +57,14 @@ struct Experiment {
     section: &'static str,
     title: &'static str,
     run: fn(&Ctx) -> Result<Outcome>,
-    /// Quick-tier wall time measured in CI (clean clone at a5494da, 2-core Intel Xeon 2.0 GHz;
-    /// twist and buckling as trimmed on 2026-12-03, measured with `--only twist buckling
-    /// --jobs 2`): balances `--jobs` when the output directory has no saved outcome to go by.
-    /// For an experiment of the full tier only, its full-tier wall time on that machine instead.
-    quick_s: f64,
+    /// Wall times to expect in each tier, `(quick, full)`, balancing `--jobs` when the output
+    /// directory has no saved outcome to go by (a fresh clone). Quick: measured in CI (clean
+    /// clone at a5494da, 2-core Intel Xeon 2.0 GHz; twist and buckling as trimmed on
+    /// 2026-12-03, measured with `--only twist buckling --jobs 2`); 0 for an experiment the
+    /// quick tier does not run. Full: a full run at afa838f on the 2-core development machine,
+    /// two experiments at a time (three for its last half hour; `compare`, `disk_plates`,
+    /// `stability` and part of `fixtures` and `twist_fine` estimated from earlier runs).
+    wall_s: (f64, f64),
     /// The tiers it belongs to.
     runs: Runs,
 }
@@ -92,13 +95,11 @@ impl Experiment {
         self.runs == Runs::Always || tier == Tier::Full
     }
 
-    /// The wall time to expect in `tier` with no saved outcome to go by (only the order of
-    /// these matters: `--jobs` balances by them).
+    /// The wall time to expect in `tier` with no saved outcome to go by.
     fn expected_s(&self, tier: Tier) -> f64 {
-        match (self.runs, tier) {
-            (Runs::Always, Tier::Quick) => self.quick_s,
-            (Runs::Always, Tier::Full) => 30.0 * self.quick_s,
-            _ => self.quick_s,
+        match tier {
+            Tier::Quick => self.wall_s.0,
+            Tier::Full => self.wall_s.1,
         }
     }
 }
@@ -109,7 +110,7 @@ const EXPERIMENTS: &[Experiment] = &[
         section: "BFEMP 6.1",
         title: "MPM ring vs FEM ring at 40 m/s: momentum, energy, non-penetration",
         run: experiment::drive::<rings::Rings>,
-        quick_s: 180.0,
+        wall_s: (180.0, 2631.0),
         runs: Runs::Always,
     },
     Experiment {
@@ -117,7 +118,7 @@ const EXPERIMENTS: &[Experiment] = &[
         section: "BFEMP 6.2",
         title: "FEM sine-wave boundary vs level-set slip boundary",
         run: experiment::drive::<sine::Sine>,
-        quick_s: 110.0,
+        wall_s: (110.0, 422.0),
         runs: Runs::Always,
     },
     Experiment {
@@ -125,7 +126,7 @@ const EXPERIMENTS: &[Experiment] = &[
         section: "BFEMP 6.3",
         title: "Brazilian disk: force vs contact radius against 2D Hertz",
         run: experiment::drive::<hertz::Hertz>,
-        quick_s: 20.0,
+        wall_s: (20.0, 100.0),
         runs: Runs::Always,
     },
     Experiment {
@@ -133,7 +134,7 @@ const EXPERIMENTS: &[Experiment] = &[
         section: "BFEMP 6.4",
         title: "Stiff MPM box on a frictional FEM slope: g(sinθ − μcosθ), sticking at μ = tanθ",
         run: experiment::drive::<slope::Slope>,
-        quick_s: 42.0,
+        wall_s: (42.0, 62.0),
         runs: Runs::Always,
     },
     Experiment {
@@ -141,7 +142,7 @@ const EXPERIMENTS: &[Experiment] = &[
         section: "BFEMP 6.5",
         title: "MPM box on FEM box under refinement: convergence order",
         run: experiment::drive::<refinement::Refinement>,
-        quick_s: 54.0,
+        wall_s: (54.0, 529.0),
         runs: Runs::Always,
     },
     Experiment {
@@ -149,7 +150,7 @@ const EXPERIMENTS: &[Experiment] = &[
         section: "BFEMP 6.6",
         title: "Semicircular rings compressed: buckling order vs μ",
         run: experiment::drive::<buckling::Buckling>,
-        quick_s: 176.0,
+        wall_s: (176.0, 1251.0),
         runs: Runs::Always,
     },
     Experiment {
@@ -157,7 +158,7 @@ const EXPERIMENTS: &[Experiment] = &[
         section: "BFEMP 6.7",
         title: "3D shell twisting an MPM cube: slip angles vs μ",
         run: experiment::drive::<twist::Twist<twist::Fixture>>,
-        quick_s: 158.0,
+        wall_s: (158.0, 1510.0),
         runs: Runs::Always,
     },
     Experiment {
@@ -165,8 +166,9 @@ const EXPERIMENTS: &[Experiment] = &[
         section: "BFEMP 6.7",
         title: "3D shell twisting an MPM cube at h = 0.125: slip angles vs μ",
         run: experiment::drive::<twist::Twist<twist::Fine>>,
-        // Its first run, at 93949fc (four μ on 2 threads, other runs alongside part of it).
-        quick_s: 4303.0,
+        // μ = 0 / 0.2 / 0.5 at afa838f: 935 / 1 858 / 3 325 s; μ = 1 estimated as 1.38× μ = 0.5's
+        // (their ratio at 93949fc).
+        wall_s: (0.0, 10700.0),
         runs: Runs::Full,
     },
     Experiment {
@@ -175,7 +177,7 @@ const EXPERIMENTS: &[Experiment] = &[
         title: "3D shell twisting an MPM cube at the paper's h = 0.0625: μ = 0.2 and 1",
         run: experiment::drive::<twist::Twist<twist::Paper>>,
         // Not run yet: two runs of 4–7 h each (docs/performance.md, the twist at h = 0.0625).
-        quick_s: 40000.0,
+        wall_s: (0.0, 40000.0),
         runs: Runs::FullWhenNamed,
     },
     Experiment {
@@ -183,7 +185,7 @@ const EXPERIMENTS: &[Experiment] = &[
         section: "augury 3.1",
         title: "Two particles in one cell, APIC vs PIC",
         run: experiment::drive::<augury::TwoParticles>,
-        quick_s: 0.1,
+        wall_s: (0.1, 0.1),
         runs: Runs::Always,
     },
     Experiment {
@@ -191,7 +193,7 @@ const EXPERIMENTS: &[Experiment] = &[
         section: "augury 3.2",
         title: "Two blocks impacting at an angle: exact momenta",
         run: experiment::drive::<augury::blocks::Blocks>,
-        quick_s: 32.0,
+        wall_s: (32.0, 1468.0),
         runs: Runs::Always,
     },
     Experiment {
@@ -199,7 +201,7 @@ const EXPERIMENTS: &[Experiment] = &[
         section: "augury 3.3",
         title: "Block sliding down a 30° ramp",
         run: experiment::drive::<augury::ramp::Ramp>,
-        quick_s: 41.0,
+        wall_s: (41.0, 499.0),
         runs: Runs::Always,
     },
     Experiment {
@@ -207,7 +209,7 @@ const EXPERIMENTS: &[Experiment] = &[
         section: "augury 4",
         title: "Speed: augury contact against the search-based penalty baseline, 10³–10⁶ nodes",
         run: experiment::drive::<speed::Speed>,
-        quick_s: 5.0,
+        wall_s: (5.0, 175.0),
         runs: Runs::Always,
     },
     Experiment {
@@ -215,7 +217,7 @@ const EXPERIMENTS: &[Experiment] = &[
         section: "both papers",
         title: "Speed vs accuracy: block sliding down a ramp, BFEMP / augury / penalty",
         run: experiment::drive::<compare::Compare>,
-        quick_s: 90.0,
+        wall_s: (90.0, 700.0),
         runs: Runs::Always,
     },
     Experiment {
@@ -223,7 +225,7 @@ const EXPERIMENTS: &[Experiment] = &[
         section: "both papers",
         title: "Speed vs accuracy: a disk pressed between plates (Hertz), BFEMP / augury / penalty",
         run: experiment::drive::<disk::Disk>,
-        quick_s: 86.0,
+        wall_s: (86.0, 600.0),
         runs: Runs::Always,
     },
     Experiment {
@@ -231,7 +233,7 @@ const EXPERIMENTS: &[Experiment] = &[
         section: "both papers",
         title: "Stability maps: time step against impact speed",
         run: experiment::drive::<stability::Stability>,
-        quick_s: 7.0,
+        wall_s: (7.0, 20.0),
         runs: Runs::Always,
     },
     Experiment {
@@ -239,7 +241,7 @@ const EXPERIMENTS: &[Experiment] = &[
         section: "shipped scenes",
         title: "Every fixtures/scenes/*.json runs to completion as committed",
         run: experiment::drive::<fixtures::Fixtures>,
-        quick_s: 45.0,
+        wall_s: (45.0, 2800.0),
         runs: Runs::Always,
     },
 ];
@@ -685,6 +687,34 @@ mod tests {
 
     /// The quick tier neither runs nor accepts the full-tier-only twists; the full tier runs
     /// `twist_fine` by default and `twist_paper` only when named.
+    /// On a fresh clone (no saved outcomes) `--jobs` balances by the expected wall times: every
+    /// experiment has one for each tier it runs in, and the full tier's default run splits
+    /// into two lanes the longer of which is within 10 % of half the total.
+    #[test]
+    fn a_fresh_full_tier_splits_into_balanced_lanes() {
+        for e in EXPERIMENTS {
+            for tier in [Tier::Quick, Tier::Full] {
+                if e.in_tier(tier) {
+                    assert!(e.expected_s(tier) > 0.0, "{} in {}", e.name, tier.name());
+                }
+            }
+        }
+        let cost: Vec<(f64, &str)> = selection(Tier::Full, &[], false)
+            .into_iter()
+            .map(|n| {
+                let e = EXPERIMENTS.iter().find(|e| e.name == n).unwrap();
+                (e.expected_s(Tier::Full), n)
+            })
+            .collect();
+        let total: f64 = cost.iter().map(|c| c.0).sum();
+        let lanes = partition(cost, 2);
+        let longest = lanes.iter().map(|l| l.0).fold(0.0, f64::max);
+        assert!(
+            longest <= 0.55 * total,
+            "{longest} s of {total} s: {lanes:?}"
+        );
+    }
+
     #[test]
     fn each_tier_runs_its_experiments() {
         let find = |n: &str| EXPERIMENTS.iter().find(|e| e.name == n).unwrap();
