@@ -166,7 +166,7 @@ const EXPERIMENTS: &[Experiment] = &[
         section: "BFEMP 6.7",
         title: "3D shell twisting an MPM cube at h = 0.125: slip angles vs μ",
         run: experiment::drive::<twist::Twist<twist::Fine>>,
-        // μ = 0 / 0.2 / 0.5 at afa838f: 935 / 1 858 / 3 325 s; μ = 1 estimated as 1.38× μ = 0.5's
+        // μ = 0 / 0.2 / 0.5 at afa838f: 935 / 1 858 / 3 335 s; μ = 1 estimated as 1.38× μ = 0.5's
         // (their ratio at 93949fc).
         wall_s: (0.0, 10700.0),
         runs: Runs::Full,
