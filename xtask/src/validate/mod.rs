@@ -685,8 +685,6 @@ mod tests {
         assert!(!text.contains("settings"), "{text}");
     }
 
-    /// The quick tier neither runs nor accepts the full-tier-only twists; the full tier runs
-    /// `twist_fine` by default and `twist_paper` only when named.
     /// On a fresh clone (no saved outcomes) `--jobs` balances by the expected wall times: every
     /// experiment has one for each tier it runs in, and the full tier's default run splits
     /// into two lanes the longer of which is within 10 % of half the total.
@@ -699,12 +697,10 @@ mod tests {
                 }
             }
         }
-        let cost: Vec<(f64, &str)> = selection(Tier::Full, &[], false)
-            .into_iter()
-            .map(|n| {
-                let e = EXPERIMENTS.iter().find(|e| e.name == n).unwrap();
-                (e.expected_s(Tier::Full), n)
-            })
+        let cost: Vec<(f64, &str)> = EXPERIMENTS
+            .iter()
+            .filter(|e| e.by_default(Tier::Full))
+            .map(|e| (e.expected_s(Tier::Full), e.name))
             .collect();
         let total: f64 = cost.iter().map(|c| c.0).sum();
         let lanes = partition(cost, 2);
@@ -715,6 +711,8 @@ mod tests {
         );
     }
 
+    /// The quick tier neither runs nor accepts the full-tier-only twists; the full tier runs
+    /// `twist_fine` by default and `twist_paper` only when named.
     #[test]
     fn each_tier_runs_its_experiments() {
         let find = |n: &str| EXPERIMENTS.iter().find(|e| e.name == n).unwrap();
