@@ -126,6 +126,57 @@ impl Grid for Paper {
     }
 }
 
+/// The contact at the step where the fixture's top layer twists most (an INFO row): what it
+/// carries against how stiffly the cube resists, next to what the paper's slip angle needs.
+fn contact_row(mu: f64, samples: &[Sample]) -> Check {
+    let pi = std::f64::consts::PI;
+    let s = samples
+        .iter()
+        .copied()
+        .max_by(|a, b| a.twist_top.total_cmp(&b.twist_top))
+        .expect("steps");
+    let figure = format!(
+        "μ = {mu}: contact at the largest twist (t = {:.2} s, {:.3}π)",
+        s.t,
+        s.twist_top / pi
+    );
+    if s.load <= 0.0 || s.twist_top <= 0.0 {
+        return Check::info(
+            &figure,
+            format!(
+                "no twist to split (load {:.3e} N, twist {:.3e} rad)",
+                s.load, s.twist_top
+            ),
+            "—".into(),
+        );
+    }
+    let k = s.torque / s.twist_top;
+    let expected = if mu < 1.0 {
+        let paper = if mu < 0.3 { 0.3 } else { 0.7 };
+        format!(
+            "paper's {paper}π needs (Σ|f·n| r) / k ≈ {:.1} rad; linear elasticity: k ≈ 5.0 MN \
+             m/rad, load ≈ 39 MN",
+            paper * pi / mu
+        )
+    } else {
+        "paper: no slip (ratio < 1)".into()
+    };
+    Check::info(
+        &figure,
+        format!(
+            "load {:.1} MN at r̄ {:.3} m; torque {:.2} MN m = {:.2} μ Σ|f·n| r; k {:.1} MN m/rad; \
+             (Σ|f·n| r) / k = {:.2} rad",
+            s.load / 1e6,
+            s.moment / s.load,
+            s.torque / 1e6,
+            s.torque / (mu * s.moment),
+            k / 1e6,
+            s.moment / k
+        ),
+        expected,
+    )
+}
+
 /// BFEMP §6.7 on grid `G`.
 pub(super) struct Twist<G>(PhantomData<G>);
 
@@ -142,9 +193,66 @@ pub(super) struct Case {
     h: f64,
 }
 
-/// One sample after a step: the time, the twist of the top cell layer, and of the fixture's top
-/// layer (the same unless the grid is finer).
-type Sample = (f64, f64, f64);
+/// One sample after a step.
+#[derive(Clone, Copy)]
+struct Sample {
+    t: f64,
+    /// The twist of the top cell layer.
+    twist: f64,
+    /// The twist of the fixture's top layer (the same unless the grid is finer).
+    twist_top: f64,
+    /// What the shell presses on the cube with (the particles' contact forces, barrier and
+    /// friction, split by the shell's outward normal at each particle): the normal load Σ|f·n|.
+    load: f64,
+    /// Its moment about the axis, Σ|f·n| r: the torque Coulomb friction can carry is μ times it
+    /// (the azimuthal direction lies in every contact's tangent plane).
+    moment: f64,
+    /// The torque about the axis the contact forces apply to the cube.
+    torque: f64,
+}
+
+impl Sample {
+    /// After a step of `w`, whose cube's top particles are `cell` and `fixture`.
+    fn of(w: &femp::World<3>, cell: &Top, fixture: &Top) -> Self {
+        let mpm = w.bodies.mpm.as_ref().expect("the cube is MPM");
+        let shell = &w
+            .bodies
+            .fem
+            .iter()
+            .find(|b| b.name == "shell")
+            .expect("the fixture's FEM body is `shell`")
+            .x;
+        // The shell is a sphere whose poles are mesh vertices: its centre is the middle of its
+        // bounding box (it moves with the prescribed cap; the shell is 100× stiffer than the
+        // cube).
+        let (lo, hi) = shell.iter().fold(
+            (
+                Vector3::repeat(f64::INFINITY),
+                Vector3::repeat(f64::NEG_INFINITY),
+            ),
+            |(lo, hi), x| (lo.inf(x), hi.sup(x)),
+        );
+        let centre = (lo + hi) / 2.0;
+        let (mut load, mut moment, mut torque) = (0.0, 0.0, 0.0);
+        for (x, f) in mpm.x.iter().zip(&mpm.contact_force) {
+            if *f == Vector3::zeros() {
+                continue;
+            }
+            let fn_ = f.dot(&(x - centre).normalize()).abs();
+            load += fn_;
+            moment += fn_ * x.xy().norm();
+            torque += x[0] * f[1] - x[1] * f[0];
+        }
+        Self {
+            t: w.clock.time,
+            twist: cell.angle(&mpm.x),
+            twist_top: fixture.angle(&mpm.x),
+            load,
+            moment,
+            torque,
+        }
+    }
+}
 
 /// A run (or why it stopped) and the twist of the cube's top after every step, against time.
 pub(super) struct Measured {
@@ -189,7 +297,7 @@ impl<G: Grid> Experiment for Twist<G> {
             let x = &w.bodies.mpm.as_ref().expect("the cube is MPM").x;
             let (cell, fixture) =
                 top.get_or_insert_with(|| (Top::of(x, h), Top::of(x, FIXTURE_LAYER)));
-            (w.clock.time, cell.angle(x), fixture.angle(x))
+            Sample::of(w, cell, fixture)
         })?;
         Ok(Measured { run, samples })
     }
@@ -205,6 +313,17 @@ impl<G: Grid> Experiment for Twist<G> {
              = {mus:?}. Twist angle = mean rotation about the axis of the particles that start \
              in the top cell layer at 0.1–0.45 m from it."
         ));
+        out.notes.push(format!(
+            "What the contact carries (μ > 0, at the step of the largest twist of the top \
+             {FIXTURE_LAYER} m): the particles' contact forces (barrier and friction) split by \
+             the shell's outward normal — the normal load Σ|f·n|, its mean radius r̄ = Σ|f·n| r \
+             / Σ|f·n|, the torque the shell applies to the cube, k = torque / twist — so the \
+             slip angle is about μ (Σ|f·n| r) / k: the torque reaches μ Σ|f·n| r (ratio 1) \
+             when the top slides. The paper's angles need (Σ|f·n| r) / k = its angle / μ; \
+             linear elasticity for the paper's E, ν gives k ≈ 5.0 MN m/rad (a 1 m square bar, \
+             0.141 G a⁴ / L) and a load ≈ 39 MN (Hertz, a 0.5 m sphere 0.49 m deep). Per step \
+             in twist_mu*.csv; docs/bfemp.md, §6.7."
+        ));
         let mut maxima = Vec::new();
         for (c, Measured { run, samples }) in runs {
             let mu = c.mu;
@@ -215,7 +334,7 @@ impl<G: Grid> Experiment for Twist<G> {
                         format!("μ = {mu}: run reaches t = {duration} s"),
                         format!(
                             "stopped at t = {:.2} s",
-                            samples.last().map_or(0.0, |s| s.0)
+                            samples.last().map_or(0.0, |s| s.t)
                         ),
                         format!("{duration} s"),
                     ));
@@ -228,9 +347,10 @@ impl<G: Grid> Experiment for Twist<G> {
                 r.metrics.iter().map(|m| m.penetrations).max().unwrap_or(0),
                 0,
             ));
-            let (t_end, a_end, top_end) = *samples.last().expect("steps");
-            let a_max = samples.iter().map(|s| s.1).fold(0.0, f64::max);
-            let top_max = samples.iter().map(|s| s.2).fold(0.0, f64::max);
+            let end = *samples.last().expect("steps");
+            let (t_end, a_end, top_end) = (end.t, end.twist, end.twist_top);
+            let a_max = samples.iter().map(|s| s.twist).fold(0.0, f64::max);
+            let top_max = samples.iter().map(|s| s.twist_top).fold(0.0, f64::max);
             maxima.push((mu, a_max));
             let shell = shell_angle(t_end);
             let pi = std::f64::consts::PI;
@@ -273,6 +393,9 @@ impl<G: Grid> Experiment for Twist<G> {
                     format!("{:.3}π rad", a_max / pi),
                     format!("≈ {paper}π (paper §6.7, Fig. 17)"),
                 ));
+            }
+            if mu > 0.0 {
+                out.checks.push(contact_row(mu, samples));
             }
             out.notes.push(format!(
                 "μ = {mu}: {} steps, {} Newton iterations, {:.0} s; cube twist at t = {t_end:.2} s \
@@ -324,17 +447,20 @@ impl<G: Grid> Experiment for Twist<G> {
             if m.run.is_err() {
                 continue;
             }
-            let csv: String = std::iter::once(format!("t,twist,twist_top_{FIXTURE_LAYER}\n"))
-                .chain(
-                    m.samples
-                        .iter()
-                        .map(|(t, a, top)| format!("{t},{a},{top}\n")),
+            let csv: String = std::iter::once(format!(
+                "t,twist,twist_top_{FIXTURE_LAYER},normal_load_N,load_moment_Nm,torque_Nm\n"
+            ))
+            .chain(m.samples.iter().map(|s| {
+                format!(
+                    "{},{},{},{},{},{}\n",
+                    s.t, s.twist, s.twist_top, s.load, s.moment, s.torque
                 )
-                .collect();
+            }))
+            .collect();
             std::fs::write(ctx.dir.join(format!("twist_mu{}.csv", c.mu)), csv)?;
             series.push(Series::line(
                 format!("μ = {}", c.mu),
-                m.samples.iter().map(|&(t, a, _)| (t, a)).collect(),
+                m.samples.iter().map(|s| (s.t, s.twist)).collect(),
                 k,
             ));
         }
@@ -361,5 +487,56 @@ impl<G: Grid> Experiment for Twist<G> {
         out.charts
             .push(("Twist angle of the cube's top".into(), png));
         Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn sample(t: f64, twist_top: f64, load: f64, moment: f64, torque: f64) -> Sample {
+        Sample {
+            t,
+            twist: twist_top,
+            twist_top,
+            load,
+            moment,
+            torque,
+        }
+    }
+
+    /// The contact row is taken at the largest twist of the fixture's layer and splits it as
+    /// docs/bfemp.md does: r̄ = moment / load, k = torque / twist, ratio = torque / (μ moment).
+    #[test]
+    fn contact_row_splits_the_largest_twist() {
+        let samples = [
+            sample(1.5, 0.267, 28.3e6, 7.56e6, 1.69e6),
+            // The top slides here: its twist is largest.
+            sample(2.9, 0.764, 33.3e6, 8.66e6, 4.42e6),
+            sample(3.0, 0.700, 33.5e6, 8.70e6, 4.30e6),
+        ];
+        let row = contact_row(0.5, &samples);
+        assert_eq!(row.status, Status::Info);
+        assert!(row.figure.contains("t = 2.90 s"), "{}", row.figure);
+        // r̄ 8.66 / 33.3 = 0.260 m; 4.42 / (0.5 × 8.66) = 1.02; k = 4.42 / 0.764 = 5.79;
+        // 8.66 / 5.79 = 1.50 rad.
+        for part in [
+            "load 33.3 MN",
+            "r̄ 0.260 m",
+            "= 1.02 μ",
+            "k 5.8 MN",
+            "= 1.50 rad",
+        ] {
+            assert!(
+                row.measured.contains(part),
+                "{part} not in {}",
+                row.measured
+            );
+        }
+        // The paper's 0.7π at μ = 0.5 needs 0.7π / 0.5 = 4.4 rad.
+        assert!(row.expected.contains("≈ 4.4 rad"), "{}", row.expected);
+        // Nothing pressed or twisted: said, not divided by zero.
+        let row = contact_row(1.0, &[sample(0.5, 0.0, 0.0, 0.0, 0.0)]);
+        assert!(row.measured.starts_with("no twist"), "{}", row.measured);
     }
 }
