@@ -126,6 +126,12 @@ impl Grid for Paper {
     }
 }
 
+/// The slip angle the paper's text gives for friction `0 < mu < 1` (§6.7, Fig. 17), in units of π:
+/// 0.3 at μ = 0.2, 0.7 at μ = 0.5.
+fn paper_slip(mu: f64) -> f64 {
+    if mu < 0.3 { 0.3 } else { 0.7 }
+}
+
 /// The contact at the step where the fixture's top layer twists most (an INFO row): what it
 /// carries against how stiffly the cube resists, next to what the paper's slip angle needs.
 fn contact_row(mu: f64, samples: &[Sample]) -> Check {
@@ -152,7 +158,7 @@ fn contact_row(mu: f64, samples: &[Sample]) -> Check {
     }
     let k = s.torque / s.twist_top;
     let expected = if mu < 1.0 {
-        let paper = if mu < 0.3 { 0.3 } else { 0.7 };
+        let paper = paper_slip(mu);
         format!(
             "paper's {paper}π needs (Σ|f·n| r) / k ≈ {:.1} rad; linear elasticity: k ≈ 5.0 MN \
              m/rad, load ≈ 39 MN",
@@ -387,7 +393,7 @@ impl<G: Grid> Experiment for Twist<G> {
                     status: if follows { Status::Pass } else { Status::Fail },
                 });
             } else {
-                let paper = if mu < 0.3 { 0.3 } else { 0.7 };
+                let paper = paper_slip(mu);
                 out.checks.push(Check::info(
                     &format!("μ = {mu}: largest cube twist (slip angle)"),
                     format!("{:.3}π rad", a_max / pi),
