@@ -46,8 +46,10 @@ pub struct StepReport {
     pub augury_iterations: usize,
     /// Whether the friction iteration converged (always true without friction).
     pub friction_converged: bool,
-    /// The step's first solve failed with this error and the step was solved again with the
-    /// other Hessian strategy (`solver.retry_other_projection`).
+    /// The step's first solve failed and the step was solved again from its start: the
+    /// failures and what solved it — direct solves after an inexact linear solve
+    /// (`solver.linear` `"pcg"` or `"last_factor_cg"`), or the other Hessian strategy
+    /// (`solver.retry_other_projection`).
     pub retried: Option<String>,
     /// Active contact terms at the end of the step.
     pub contact_terms: usize,

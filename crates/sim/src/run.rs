@@ -438,8 +438,9 @@ fn end_warnings(summary: &mut Summary, driven: bool) {
     if summary.retried_steps > 0 {
         let n = summary.retried_steps;
         summary.warnings.push(format!(
-            "{n} {} failed {} first solve and {} solved again with the other Hessian strategy \
-             (solver.retry_other_projection)",
+            "{n} {} failed {} first solve and {} solved again from the start, with direct \
+             solves after an inexact linear solve (solver.linear) or with the other Hessian \
+             strategy (solver.retry_other_projection); each is printed as it happens",
             if n == 1 { "step" } else { "steps" },
             if n == 1 { "its" } else { "their" },
             if n == 1 { "was" } else { "were" },
@@ -594,12 +595,8 @@ fn drive<const D: usize>(
                 return Err(e);
             }
         };
-        if let Some(first) = &report.retried {
-            let line = format!(
-                "{first}; solved again with the other Hessian strategy \
-                 (solver.retry_other_projection)"
-            );
-            announce(bar.as_ref(), opts.progress, &name, &line);
+        if let Some(retried) = &report.retried {
+            announce(bar.as_ref(), opts.progress, &name, retried);
         }
         if report.substeps > 1 {
             let line = format!(

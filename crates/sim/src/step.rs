@@ -396,48 +396,75 @@ impl Bfemp {
                 report,
             )
         };
-        match solve(obj, x, params, report) {
-            Ok(()) => Ok(()),
-            Err(first)
-                if solver.retry_other_projection
-                    && !matches!(first.0, femp_solver::SolveError::Interrupted { .. }) =>
-            {
-                if let Some(stats) = first.0.stats() {
-                    report.newton_iterations += stats.iterations;
-                    report.stats += stats;
+        // The attempts after a failed solve, each from the step's start: an inexact linear
+        // solve (CG) is retried with direct solves and the same Hessian strategy — CG's
+        // tolerance can lead Newton to a point no direction leaves (docs/performance.md,
+        // `last_factor_cg`) — then, with `retry_other_projection`, the other strategy.
+        let direct = NewtonParams {
+            linear: LinearSolver::Cholesky,
+            ..*params
+        };
+        let other = NewtonParams {
+            hessian: match params.hessian {
+                HessianStrategy::Projected => HessianStrategy::ExactWhenDefinite,
+                _ => HessianStrategy::Projected,
+            },
+            ..direct
+        };
+        let retries = [
+            (params.linear != LinearSolver::Cholesky).then_some((direct, "direct solves")),
+            solver.retry_other_projection.then_some((
+                other,
+                match other.hessian {
+                    HessianStrategy::Projected => "projected Newton",
+                    _ => "the exact Hessian when definite",
+                },
+            )),
+        ];
+        let mut retries = retries.iter().flatten();
+        let mut attempt = (*params, "");
+        // The failures so far, as one error (the latest first).
+        let mut so_far: Option<SimError> = None;
+        loop {
+            let e = match solve(obj, x, &attempt.0, report) {
+                Ok(()) => {
+                    if let Some(failed) = so_far {
+                        report.retried = Some(format!("{failed}; solved again with {}", attempt.1));
+                    }
+                    return Ok(());
                 }
-                let first = failed(first);
-                let other = match params.hessian {
-                    HessianStrategy::Projected => HessianStrategy::ExactWhenDefinite,
-                    _ => HessianStrategy::Projected,
-                };
-                let retry = NewtonParams {
-                    hessian: other,
-                    ..*params
-                };
-                x.copy_from_slice(&start);
-                report.friction_converged = true;
-                report.retried = Some(first.to_string());
-                solve(obj, x, &retry, report).map_err(|e| match failed(e) {
+                Err(e) if matches!(e.0, femp_solver::SolveError::Interrupted { .. }) => {
+                    return Err(failed(e));
+                }
+                Err(e) => e,
+            };
+            if let Some(stats) = e.0.stats() {
+                report.newton_iterations += stats.iterations;
+                report.stats += stats;
+            }
+            let e = match (failed(e), so_far.take()) {
+                (e, None) => e,
+                (
                     SimError::StepFailed {
                         step,
                         time,
                         message,
-                    } => SimError::StepFailed {
-                        step,
-                        time,
-                        message: format!(
-                            "{message}, retried with {} after: {first}",
-                            match other {
-                                HessianStrategy::Projected => "projected Newton",
-                                _ => "the exact Hessian when definite",
-                            }
-                        ),
                     },
-                    e => e,
-                })
-            }
-            Err(e) => Err(failed(e)),
+                    Some(before),
+                ) => SimError::StepFailed {
+                    step,
+                    time,
+                    message: format!("{message}, retried with {} after: {before}", attempt.1),
+                },
+                (e, Some(_)) => e,
+            };
+            let Some(&(next, how)) = retries.next() else {
+                return Err(e);
+            };
+            so_far = Some(e);
+            x.copy_from_slice(&start);
+            report.friction_converged = true;
+            attempt = (next, how);
         }
     }
 }

@@ -72,8 +72,9 @@ pub struct Summary {
     pub pcg_fallbacks: usize,
     /// Steps whose friction iteration hit its limit.
     pub friction_unconverged_steps: usize,
-    /// Steps whose first solve failed and that were solved again with the other Hessian
-    /// strategy (`solver.retry_other_projection`).
+    /// Steps whose first solve failed and that were solved again from their start, with
+    /// direct solves after an inexact linear solve or with the other Hessian strategy
+    /// (`solver.retry_other_projection`).
     pub retried_steps: usize,
     /// Largest penetration count in any step (BFEMP: must be 0).
     pub max_penetrations: usize,

@@ -632,6 +632,72 @@ fn a_step_whose_solve_fails_is_solved_again_with_the_other_projection() {
     );
 }
 
+/// Two elastic boxes, one MPM and one FEM, meeting head-on at 1 m/s (the `compare` experiment's
+/// impact scene at h = 1/32, backward Euler here), frictionless, with the last factorisation as
+/// CG's preconditioner at a loose `rtol`. Over the first 80 steps Newton on these CG directions
+/// needs up to 30 iterations a step (step 43, as the boxes press together) where direct solves
+/// need at most 15.
+fn loose_cg_impact(max_newton: usize, duration: f64) -> String {
+    format!(
+        r#"{{
+  "dimension": 2,
+  "time": {{ "dt": 0.0025, "duration": {duration}, "integrator": "backward_euler" }},
+  "solver": {{ "tolerance": 1e-5, "max_newton_iterations": {max_newton},
+              "linear": "last_factor_cg", "factor_cg_rtol": 0.3,
+              "retry_other_projection": false }},
+  "mpm": {{ "grid_spacing": 0.03125 }},
+  "bodies": [
+    {{ "kind": "mpm", "name": "a", "shape": {{ "box": {{ "min": [-1.05, 0.0], "max": [-0.05, 0.5] }} }},
+      "particles_per_cell": 4, "velocity": [0.5, 0.0],
+      "material": {{ "model": "linear", "E": 1e5, "nu": 0.0, "rho": 1000 }} }},
+    {{ "kind": "fem", "name": "b",
+      "mesh": {{ "rectangle": {{ "min": [0.05, 0.0], "max": [1.05, 0.5], "cells": [32, 16] }} }},
+      "velocity": [-0.5, 0.0],
+      "material": {{ "model": "linear", "E": 1e5, "nu": 0.0, "rho": 1000 }} }}
+  ],
+  "contact": {{ "dhat": 0.001, "kappa": 1e6 }}
+}}"#
+    )
+}
+
+/// A solve with CG directions (`solver.linear: "last_factor_cg"`) that fails is solved again
+/// from the step's start with direct solves, before and independently of
+/// `solver.retry_other_projection` (off here): the run goes through, the retried steps counted
+/// and their failed attempts' iterations in their rows.
+#[test]
+fn a_step_whose_cg_solve_fails_is_solved_again_with_direct_solves() {
+    let r = run_scene(&loose_cg_impact(20, 0.125));
+    assert_eq!(r.summary.steps, 50);
+    assert!(r.summary.retried_steps >= 1, "{:?}", r.summary);
+    let retried = r
+        .metrics
+        .iter()
+        .filter(|m| m.newton_iterations > 20)
+        .count();
+    assert_eq!(retried, r.summary.retried_steps);
+    assert!(
+        r.summary
+            .warnings
+            .iter()
+            .any(|w| w.contains("direct solves")),
+        "{:?}",
+        r.summary.warnings
+    );
+    assert_eq!(r.summary.max_penetrations, 0);
+    // When the direct solves fail too, the run stops with both errors, the retry's first.
+    let err = try_run_scene(&loose_cg_impact(8, 0.125))
+        .unwrap_err()
+        .to_string();
+    assert!(
+        err.contains("), retried with direct solves after: step")
+            && err
+                .matches("failed: Newton did not converge in 8 iterations")
+                .count()
+                == 2,
+        "{err}"
+    );
+}
+
 /// `World::record_newton_iterations`: every Newton iteration of a step is recorded, with the
 /// unknown its largest increment sat on — grid nodes with their mass, FEM vertices with their
 /// body's lumped mass — and recording stops when asked.
