@@ -1,7 +1,9 @@
 //! What an experiment runs its scenes through: [`Ctx`] (tier, directories, progress bars, the
 //! runs' pictures) and [`Pictures`], chosen where a run starts.
 
+use std::cell::Cell;
 use std::path::PathBuf;
+use std::sync::Mutex;
 
 use anyhow::{Context, Result};
 use femp::metrics::Metrics;
@@ -72,10 +74,29 @@ pub struct Ctx {
     /// Workspace root (for fixtures).
     pub root: PathBuf,
     pub(super) progress: indicatif::MultiProgress,
-    /// Pictured runs so far: label, caption, which files to show.
-    pub(super) pictured: std::cell::RefCell<Vec<(String, String, usize, bool)>>,
+    /// Pictured runs so far: the case that ran them ([`in_case`]), label, caption, which files
+    /// to show.
+    pub(super) pictured: Mutex<Vec<Pictured>>,
     /// Scene fields set on every BFEMP scene (`validate --set`).
     pub(super) settings: Vec<crate::settings::Setting>,
+    /// Lanes the experiment's cases run in at once (`validate --jobs N` with one experiment;
+    /// [`super::experiment::drive`]).
+    pub(super) case_lanes: usize,
+}
+
+/// A pictured run: its case's index, label, caption, key frames, whether only the last shows.
+pub(super) type Pictured = (usize, String, String, usize, bool);
+
+thread_local! {
+    /// The index of the case this thread is measuring ([`in_case`]).
+    static CASE: Cell<usize> = const { Cell::new(0) };
+}
+
+/// Run `f` as the measurement of case `index`: the pictures it asks for are listed in case
+/// order whichever lane finishes first.
+pub(super) fn in_case<R>(index: usize, f: impl FnOnce() -> R) -> R {
+    CASE.with(|c| c.set(index));
+    f()
 }
 
 impl Ctx {
@@ -93,9 +114,13 @@ impl Ctx {
             gif,
             up,
         } = pictures?;
-        self.pictured
-            .borrow_mut()
-            .push((label.to_string(), caption, keys, last_only));
+        self.pictured.lock().expect("a lane panicked").push((
+            CASE.with(Cell::get),
+            label.to_string(),
+            caption,
+            keys,
+            last_only,
+        ));
         Some(femp::render::PictureOptions {
             key_frames: keys,
             gif_frames: if gif { 30 } else { 0 },
@@ -108,7 +133,10 @@ impl Ctx {
     /// Copy the pictures of the runs made so far into the charts directory and list them in
     /// `out` (key frames side by side, then the GIF if there is one).
     pub(super) fn collect_pictures(&self, out: &mut Outcome) -> Result<()> {
-        for (label, caption, keys, last_only) in self.pictured.borrow_mut().drain(..) {
+        let mut pictured = std::mem::take(&mut *self.pictured.lock().expect("a lane panicked"));
+        // In case order (stable: a case's runs in the order it made them).
+        pictured.sort_by_key(|p| p.0);
+        for (_, label, caption, keys, last_only) in pictured {
             let src = self.dir.join(&label).join("pictures");
             std::fs::create_dir_all(&self.charts)?;
             let mut files = Vec::new();
@@ -298,6 +326,7 @@ mod tests {
             root: crate::validate::workspace_root(),
             progress: indicatif::MultiProgress::new(),
             pictured: Default::default(),
+            case_lanes: 1,
             settings: settings
                 .iter()
                 .map(|(k, v)| (k.to_string(), crate::settings::value(v)))

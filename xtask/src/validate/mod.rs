@@ -255,7 +255,8 @@ const USAGE: &str =
   --only     run only these experiments; the report also shows every other experiment's saved
              outcome in the output directory (so a long tier can be run a piece at a time)
   --jobs     run the experiments in N processes at once (balanced by expected wall time); the
-             checks are the same, the wall times overlap (marked ‖ in the report). CI uses 2
+             checks are the same, the wall times overlap (marked ‖ in the report). CI uses 2.
+             With one experiment: its cases in N lanes at once, the longest first
   --report   run nothing: assemble the report from the saved outcomes
   --out      output directory (default target/validation/<tier>)
   --publish  copy the report and what it shows into docs/validation/ (quick) or
@@ -453,6 +454,7 @@ pub fn main(args: &[String]) -> Result<()> {
             progress: progress.clone(),
             pictured: Default::default(),
             settings: set.clone(),
+            case_lanes: if selected.len() == 1 { jobs } else { 1 },
         };
         let t = Instant::now();
         let outcome = (e.run)(&ctx)
