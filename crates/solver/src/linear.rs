@@ -44,6 +44,9 @@ pub enum Ordering {
 /// The tasks [`Threads::Auto`] splits a large factorisation into, on any number of threads.
 pub const FACTOR_TASKS: usize = 8;
 
+/// Held while METIS runs: GKlib's random generator is one static state per process.
+static METIS: std::sync::Mutex<()> = std::sync::Mutex::new(());
+
 /// Parallelism of the numeric factorisation and solve.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
 pub enum Threads {
@@ -294,7 +297,8 @@ impl Cholesky {
         self.stats.solve_s += t.elapsed().as_secs_f64();
     }
 
-    /// METIS NodeND on the (node-compressed) graph of `a`; returns (forward, inverse)
+    /// METIS NodeND on the (node-compressed) graph of `a` (one call in the process at a time:
+    /// [`METIS`]); returns (forward, inverse)
     /// permutations of the rows (`forward[new] = old`).
     fn nested_dissection(
         &self,
@@ -349,8 +353,14 @@ impl Cholesky {
         if nn > 1 && !adjncy.is_empty() {
             let mut nv = nn as i32;
             let mut options = [0i32; metis_sys::METIS_NOPTIONS as usize];
+            // One METIS call at a time in the process: METIS draws from GKlib's random
+            // generator, a static state each call re-seeds, so calls on two threads at once
+            // (two worlds stepping side by side) would interleave their draws — other orderings,
+            // other bits, and a data race on that state. (A poisoned lock guards nothing.)
+            let _one_at_a_time = METIS.lock().unwrap_or_else(|e| e.into_inner());
             // SAFETY: plain FFI calls with correctly sized, initialised buffers: `options` has
-            // METIS_NOPTIONS entries, `xadj` nn + 1, `adjncy` xadj[nn], `perm`/`iperm` nn.
+            // METIS_NOPTIONS entries, `xadj` nn + 1, `adjncy` xadj[nn], `perm`/`iperm` nn; no
+            // other METIS call runs meanwhile (the lock above).
             let status = unsafe {
                 metis_sys::METIS_SetDefaultOptions(options.as_mut_ptr());
                 metis_sys::METIS_NodeND(

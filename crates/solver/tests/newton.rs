@@ -1921,3 +1921,36 @@ fn last_factor_cg_reaches_the_cholesky_step_with_fewer_factorisations() {
         "{stats:?}"
     );
 }
+
+/// Nested-dissection orderings made on several threads at once are the ones made alone. METIS
+/// draws from GKlib's random generator, one static state per process that every call re-seeds:
+/// two calls at once (two `World`s stepping on two threads — `validate --jobs 2` lanes, Python
+/// worlds) would interleave their draws and get other orderings, and so other bits.
+#[test]
+fn nested_dissection_is_the_same_made_on_several_threads_at_once() {
+    use femp_solver::Cholesky;
+    let case = matrices::grid3(12);
+    let solve = || -> Vec<u64> {
+        let mut ch = Cholesky::new(Ordering::NestedDissection { block: 3 }, Threads::Seq);
+        let mut a = case.csc.clone();
+        ch.analyze(&a).unwrap();
+        ch.factorize(&mut a).unwrap();
+        let mut x: Vec<f64> = (0..a.n())
+            .map(|i| ((i * 7919) % 101) as f64 - 50.0)
+            .collect();
+        ch.solve_in_place(&mut x);
+        x.iter().map(|v| v.to_bits()).collect()
+    };
+    let alone = solve();
+    let at_once: Vec<Vec<Vec<u64>>> = std::thread::scope(|s| {
+        let handles: Vec<_> = (0..8)
+            .map(|_| s.spawn(|| (0..6).map(|_| solve()).collect::<Vec<_>>()))
+            .collect();
+        handles.into_iter().map(|h| h.join().unwrap()).collect()
+    });
+    let differing = at_once.iter().flatten().filter(|x| **x != alone).count();
+    assert_eq!(
+        differing, 0,
+        "{differing} of 48 solves differ from the one made alone"
+    );
+}
