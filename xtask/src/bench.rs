@@ -147,9 +147,11 @@ pub fn main(args: &[String]) -> Result<()> {
     }
     let root = super::validate::workspace_root();
     println!(
-        "| case | ordering | friction update below | Newton test | set | step | t (s) | Newton it. | friction it. | friction converged | contact terms | reused Hessians | wall (s) | assembly | symbolic | numeric | solve | line search |"
+        "| case | ordering | friction update below | Newton test | set | step | t (s) | Newton it. | friction it. | friction converged | contact terms | reused Hessians | wall (s) | assembly | symbolic | numeric | solve | CG | line search | refine it. | double factors |"
     );
-    println!("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|");
+    println!(
+        "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"
+    );
     let combinations = combinations(&sets);
     let mut trace = trace_file.as_ref().map(|_| vec![TRACE_HEADER.to_string()]);
     for case in CASES
@@ -319,7 +321,7 @@ fn run_case(
         }
         let st = &r.stats;
         println!(
-            "| {} | {:?} | {below} | {test:?} | {set} | {} | {:.3} | {} | {} | {} | {} | {} | {w:.2} | {:.2} | {:.2} | {:.2} | {:.2} | {:.2} |",
+            "| {} | {:?} | {below} | {test:?} | {set} | {} | {:.3} | {} | {} | {} | {} | {} | {w:.2} | {:.2} | {:.2} | {:.2} | {:.2} | {:.2} | {:.2} | {} | {} |",
             case.name,
             ordering,
             world.clock.step,
@@ -333,11 +335,14 @@ fn run_case(
             st.symbolic_s,
             st.numeric_s,
             st.solve_s,
-            st.line_search_s
+            st.pcg_s,
+            st.line_search_s,
+            st.refine_iterations,
+            st.double_fallbacks
         );
     }
     println!(
-        "| {} | {:?} | {below} | {test:?} | {set} | mean | | {:.1} | | | | | {:.2} | | | | | |",
+        "| {} | {:?} | {below} | {test:?} | {set} | mean | | {:.1} | | | | | {:.2} | | | | | | | | |",
         case.name,
         ordering,
         newton as f64 / steps as f64,

@@ -746,6 +746,8 @@ fn record(m: &mut Metrics, summary: &mut Summary, report: &StepReport) {
     summary.gradient_steps += s.gradient_steps;
     summary.pcg_iterations += s.pcg_iterations;
     summary.pcg_fallbacks += s.pcg_fallbacks;
+    summary.refine_iterations += s.refine_iterations;
+    summary.double_fallbacks += s.double_fallbacks;
     summary.friction_unconverged_steps += usize::from(!report.friction_converged);
     summary.retried_steps += usize::from(report.retried.is_some());
     summary.max_penetrations = summary.max_penetrations.max(m.penetrations);

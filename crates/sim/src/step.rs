@@ -5,7 +5,8 @@
 
 use femp_kernels::transfer;
 use femp_solver::{
-    Forcing, HessianStrategy, Integrator, LinearSolver, Newton, NewtonParams, Ordering, Threads,
+    Forcing, HessianStrategy, Integrator, LinearSolver, Newton, NewtonParams, Ordering, Precision,
+    Threads,
 };
 use nalgebra::{SMatrix, SVector};
 
@@ -14,7 +15,9 @@ use crate::clock::Clock;
 use crate::error::SimError;
 use crate::objective::{Dofs, Inertia, Penalty, StepObjective};
 use crate::report::{StepReport, Unknown};
-use crate::scene::spec::{LinearSpec, NewtonTestSpec, OrderingSpec, ProjectionSpec, SolverSpec};
+use crate::scene::spec::{
+    LinearSpec, NewtonTestSpec, OrderingSpec, PrecisionSpec, ProjectionSpec, SolverSpec,
+};
 use crate::scene::{BoundaryCondition, IntegratorSpec, Scene};
 
 /// The state of the implicit (BFEMP) method.
@@ -552,6 +555,10 @@ fn newton_params<const D: usize>(solver: &SolverSpec, dt: f64) -> NewtonParams {
             OrderingSpec::NestedDissection => Ordering::NestedDissection { block: D },
         },
         threads: Threads::Auto,
+        precision: match solver.factor_precision {
+            PrecisionSpec::Double => Precision::Double,
+            PrecisionSpec::Mixed => Precision::Mixed,
+        },
         hessian: match solver.projection {
             ProjectionSpec::Always => HessianStrategy::Projected,
             ProjectionSpec::WhenIndefinite => HessianStrategy::ExactWhenDefinite,

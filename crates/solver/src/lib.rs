@@ -6,8 +6,10 @@
 //!   the largest feasible step along a direction (the caller answers with CCD and det F).
 //! * [`Newton`] — BFEMP Algorithm 2: Cholesky-solved Newton directions (faer, symbolic
 //!   factorisation reused while the pattern holds, METIS nested dissection or AMD ordering,
-//!   diagonal shifts on failure) or, with [`LinearSolver::Pcg`], Jacobi-preconditioned
-//!   conjugate gradients ([`Pcg`]); line search from `0.9 ×` the feasible step, Armijo
+//!   diagonal shifts on failure; with [`Precision::Mixed`] single-precision factors whose
+//!   solves CG refines to double precision) or, with [`LinearSolver::Pcg`], Jacobi-preconditioned
+//!   conjugate gradients ([`Pcg`]), or CG preconditioned with the last factor
+//!   ([`LinearSolver::LastFactorCg`]); line search from `0.9 ×` the feasible step, Armijo
 //!   backtracking, stop at `‖p‖_∞/Δt < ε_d`; statistics and timings for every solve; errors
 //!   that carry them.
 //! * [`Integrator`] — backward Euler and Newmark in incremental-potential form.
@@ -38,7 +40,10 @@ mod sparse;
 
 pub use error::SolveError;
 pub use integrator::Integrator;
-pub use linear::{Cholesky, FACTOR_TASKS, LinearError, LinearStats, Ordering, Threads};
+pub use linear::{
+    Cholesky, FACTOR_TASKS, LinearError, LinearStats, Ordering, Precision, REFINE_ITERATIONS,
+    REFINE_RTOL, Threads,
+};
 pub use newton::{
     Forcing, HessianStrategy, IterationRecord, LinearSolver, Newton, NewtonParams, Objective,
     SolveStats, StepBound, StepLimit,

@@ -2,8 +2,8 @@
 //! the time integrators against their closed-form discrete solutions, and failing solves.
 
 use femp_solver::{
-    Forcing, HessianStrategy, Integrator, LinearSolver, Newton, NewtonParams, Objective, Ordering,
-    SolveError, SolveStats, StepBound, StepLimit, Threads, Triplets,
+    Cholesky, Forcing, HessianStrategy, Integrator, LinearSolver, Newton, NewtonParams, Objective,
+    Ordering, Pcg, Precision, SolveError, SolveStats, StepBound, StepLimit, Threads, Triplets,
 };
 use nalgebra::{DMatrix, DVector};
 
@@ -1553,6 +1553,246 @@ fn solved_bits(a: &femp_solver::UpperCsc, ordering: Ordering, threads: Threads) 
     x.iter().map(|v| v.to_bits()).collect()
 }
 
+/// `a x = b` for the fixed `b` of [`solved_bits`], by a factorisation in `precision` and
+/// [`Cholesky::solve_refined`] (or, `refine` false, one plain solve with the factor); the
+/// solution and the solver's statistics. `None` if `a` was tried (`try_only`) and found not
+/// positive definite.
+fn solve_in(
+    a: &femp_solver::UpperCsc,
+    precision: Precision,
+    try_only: bool,
+    refine: bool,
+) -> Option<(Vec<f64>, femp_solver::LinearStats)> {
+    let mut ch = Cholesky::with_precision(Ordering::Amd, Threads::Seq, precision);
+    let mut a = a.clone();
+    ch.analyze(&a).unwrap();
+    if try_only {
+        if !ch.try_factorize(&mut a).unwrap() {
+            return None;
+        }
+    } else {
+        ch.factorize(&mut a).unwrap();
+    }
+    let mut x: Vec<f64> = (0..a.n())
+        .map(|i| ((i * 7919) % 101) as f64 - 50.0)
+        .collect();
+    if refine {
+        let mut sol = vec![0.0; a.n()];
+        if !ch
+            .solve_refined(&mut a, &mut x, &mut Pcg::new(), &mut sol)
+            .unwrap()
+        {
+            return None;
+        }
+    } else {
+        ch.solve_in_place(&mut x);
+    }
+    Some((x, ch.stats))
+}
+
+fn relative_difference(a: &[f64], b: &[f64]) -> f64 {
+    let d: f64 = a.iter().zip(b).map(|(x, y)| (x - y).powi(2)).sum();
+    let n: f64 = b.iter().map(|y| y * y).sum();
+    (d / n).sqrt()
+}
+
+/// [`Precision::Mixed`] on 3D elasticity (≈ 3 000 unknowns), and on the same matrix with its
+/// unknowns scaled over eight orders of magnitude (as grid nodes of 10⁻⁵ the heaviest's mass
+/// beside stiff FEM vertices): the single-precision factor alone solves to single precision
+/// only (it is single: 10⁻⁹ < error), refined by a few CG iterations the solution is the
+/// double-precision factor's to 10⁻⁹, without a double-precision factorisation.
+#[test]
+fn mixed_precision_solves_to_double_precision_with_a_single_precision_factor() {
+    let case = matrices::grid3(10);
+    let mut scaled = case.csc.clone();
+    let (cp, ri) = (scaled.col_ptr().to_vec(), scaled.row_idx().to_vec());
+    let s = |i: usize| 10f64.powf(4.0 * ((i * 37 % 17) as f64 / 8.0 - 1.0));
+    for c in 0..scaled.n() {
+        for k in cp[c]..cp[c + 1] {
+            scaled.values_mut()[k] *= s(ri[k]) * s(c);
+        }
+    }
+    for a in [&case.csc, &scaled] {
+        let (xd, _) = solve_in(a, Precision::Double, false, true).unwrap();
+        let (xs, plain) = solve_in(a, Precision::Mixed, false, false).unwrap();
+        let single_error = relative_difference(&xs, &xd);
+        assert!(
+            single_error > 1e-9 && single_error < 1e-2,
+            "{single_error:e}"
+        );
+        assert_eq!(plain.double_fallbacks, 0);
+        let (xm, stats) = solve_in(a, Precision::Mixed, false, true).unwrap();
+        let error = relative_difference(&xm, &xd);
+        assert!(error < 1e-9, "{error:e}: {stats:?}");
+        assert!((1..=6).contains(&stats.refine_iterations), "{stats:?}");
+        assert_eq!(stats.double_fallbacks, 0, "{stats:?}");
+        assert_eq!(stats.numeric_count, 1, "{stats:?}");
+    }
+}
+
+/// Matrices single precision cannot solve are factorised again in double precision, and the
+/// mixed solve then gives exactly the double-precision solve's bits: 2×2 blocks
+/// `[[1, 1 − ε], [1 − ε, 1]]` (eigenvalues 2 − ε and ε) with ε = 10⁻⁹, which single precision
+/// rounds to singular blocks (its factorisation fails); and with ε spread over
+/// 3.5·10⁻⁸–2·10⁻⁷, whose single-precision pivots are off by up to half — CG refines those
+/// solves (measured: 16 iterations), so the fallback is shown with a budget of 8. An indefinite
+/// matrix tried without shifts is rejected in mixed precision as in double (after the
+/// double-precision try), and a shifted factorisation fails alike.
+#[test]
+fn mixed_precision_falls_back_to_double_precision_where_single_cannot_solve() {
+    let blocks = |eps: &dyn Fn(usize) -> f64| {
+        let n = 2000;
+        let mut t = Triplets::default();
+        for b in 0..n / 2 {
+            let (i, j) = (2 * b, 2 * b + 1);
+            t.push(i, i, 1.0);
+            t.push(j, j, 1.0);
+            t.push(i, j, 1.0 - eps(b));
+            t.push(j, i, 1.0 - eps(b));
+        }
+        let free: Vec<u32> = (0..n as u32).collect();
+        let mut a = femp_solver::UpperCsc::default();
+        a.assemble(&t, &free, n);
+        a
+    };
+    let bits = |x: &[f64]| x.iter().map(|v| v.to_bits()).collect::<Vec<_>>();
+    let singular = blocks(&|_| 1e-9);
+    let (xd, _) = solve_in(&singular, Precision::Double, false, true).unwrap();
+    let (xm, stats) = solve_in(&singular, Precision::Mixed, false, true).unwrap();
+    assert_eq!(
+        (
+            stats.double_fallbacks,
+            stats.numeric_count,
+            stats.refine_iterations
+        ),
+        (1, 2, 0),
+        "{stats:?}"
+    );
+    assert_eq!(bits(&xm), bits(&xd));
+
+    let spread = blocks(&|b| 3.5e-8 * 10f64.powf(0.75 * ((b * 7919) % 1000) as f64 / 1000.0));
+    let (xd, _) = solve_in(&spread, Precision::Double, false, true).unwrap();
+    let (xm, stats) = solve_in(&spread, Precision::Mixed, false, true).unwrap();
+    assert!(relative_difference(&xm, &xd) < 1e-9);
+    assert!(
+        stats.refine_iterations > 8 && stats.double_fallbacks == 0,
+        "{stats:?}"
+    );
+    let mut ch = Cholesky::with_precision(Ordering::Amd, Threads::Seq, Precision::Mixed);
+    ch.set_refinement(femp_solver::REFINE_RTOL, 8);
+    let mut a = spread.clone();
+    ch.analyze(&a).unwrap();
+    ch.factorize(&mut a).unwrap();
+    let mut x: Vec<f64> = (0..a.n())
+        .map(|i| ((i * 7919) % 101) as f64 - 50.0)
+        .collect();
+    let mut sol = vec![0.0; a.n()];
+    assert!(
+        ch.solve_refined(&mut a, &mut x, &mut Pcg::new(), &mut sol)
+            .unwrap()
+    );
+    assert_eq!(
+        (ch.stats.refine_iterations, ch.stats.double_fallbacks),
+        (8, 1),
+        "{:?}",
+        ch.stats
+    );
+    assert_eq!(bits(&x), bits(&xd));
+
+    // 3D elasticity with one diagonal entry made negative: indefinite.
+    let mut bad = matrices::grid3(6).csc;
+    let k = bad.diagonal_index(40).unwrap();
+    bad.values_mut()[k] = -bad.values()[k];
+    assert!(solve_in(&bad, Precision::Double, true, true).is_none());
+    let mut ch = Cholesky::with_precision(Ordering::Amd, Threads::Seq, Precision::Mixed);
+    let mut a = bad.clone();
+    ch.analyze(&a).unwrap();
+    assert!(!ch.try_factorize(&mut a).unwrap());
+    assert_eq!(ch.stats.double_fallbacks, 1, "{:?}", ch.stats);
+    // Both fail with the same diagonal shifts.
+    let shifted = |precision| {
+        let mut ch = Cholesky::with_precision(Ordering::Amd, Threads::Seq, precision);
+        let mut a = bad.clone();
+        ch.analyze(&a).unwrap();
+        ch.factorize(&mut a).unwrap_err()
+    };
+    assert_eq!(shifted(Precision::Mixed), shifted(Precision::Double));
+}
+
+/// Newton with [`Precision::Mixed`] on the crumpled chain's implicit step — Cholesky and the
+/// last factor as CG's preconditioner, projected and exact Hessians — and on the chain without
+/// a mass term (indefinite exact Hessians, rejected): the double-precision solve's minimiser to
+/// 10⁻¹⁰ and its iteration and rejection counts, every solve refined.
+#[test]
+fn mixed_precision_newton_takes_the_double_precision_steps() {
+    let solve = |inertia: Option<f64>, hessian, linear, precision| {
+        let (chain, x0, fixed) = crumpled_chain(if inertia.is_some() { 20 } else { 12 });
+        let params = NewtonParams {
+            tolerance: 1e-12,
+            hessian,
+            linear,
+            precision,
+            ..Default::default()
+        };
+        let mut x = x0.clone();
+        let stats = match inertia {
+            Some(inertia) => Newton::new().minimize(
+                &mut ChainStep {
+                    chain,
+                    inertia,
+                    x_hat: x0.iter().map(|v| v * 1.5).collect(),
+                },
+                &mut x,
+                &fixed,
+                &params,
+            ),
+            None => {
+                let mut chain = chain;
+                let stats = Newton::new().minimize(&mut chain, &mut x, &fixed, &params);
+                assert_hangs_in_equilibrium(&chain, &x);
+                stats
+            }
+        }
+        .unwrap();
+        (x, stats)
+    };
+    let last_factor = LinearSolver::LastFactorCg {
+        rtol: 1e-10,
+        max_iterations: 40,
+    };
+    for (inertia, hessian, linear) in [
+        (
+            Some(2.0e2),
+            HessianStrategy::Projected,
+            LinearSolver::Cholesky,
+        ),
+        (
+            Some(2.0e4),
+            HessianStrategy::ExactWhenDefinite,
+            LinearSolver::Cholesky,
+        ),
+        (Some(2.0e2), HessianStrategy::Projected, last_factor),
+        (
+            None,
+            HessianStrategy::ExactWhenDefinite,
+            LinearSolver::Cholesky,
+        ),
+    ] {
+        let (xd, sd) = solve(inertia, hessian, linear, Precision::Double);
+        let (xm, sm) = solve(inertia, hessian, linear, Precision::Mixed);
+        for (a, b) in xd.iter().zip(&xm) {
+            assert!((a - b).abs() < 1e-10, "{a} vs {b}");
+        }
+        assert_eq!(sm.iterations, sd.iterations, "{sm:?} vs {sd:?}");
+        assert_eq!(sm.exact_rejections, sd.exact_rejections, "{sm:?} vs {sd:?}");
+        assert_eq!(sd.refine_iterations, 0);
+        assert!(sm.refine_iterations > 0, "{sm:?}");
+        if inertia.is_none() {
+            assert!(sm.exact_rejections > 0, "{sm:?}");
+        }
+    }
+}
+
 fn record(iteration: usize) -> femp_solver::IterationRecord {
     femp_solver::IterationRecord {
         iteration,
@@ -1593,6 +1833,8 @@ fn solve_statistics_add_up() {
         pcg_fallbacks: k,
         pcg_tightened: k,
         pcg_s: k as f64,
+        refine_iterations: k,
+        double_fallbacks: k,
         assembly_s: k as f64,
         symbolic_s: k as f64,
         numeric_s: k as f64,

@@ -70,6 +70,11 @@ pub struct Summary {
     pub pcg_iterations: usize,
     /// Newton directions CG did not deliver and Cholesky did (`solver.linear: "pcg"`).
     pub pcg_fallbacks: usize,
+    /// CG iterations refining single-precision solves to double precision
+    /// (`solver.factor_precision: "mixed"`).
+    pub refine_iterations: usize,
+    /// Matrices factorised again in double precision (`solver.factor_precision: "mixed"`).
+    pub double_fallbacks: usize,
     /// Steps whose friction iteration hit its limit.
     pub friction_unconverged_steps: usize,
     /// Steps whose first solve failed and that were solved again from their start, with

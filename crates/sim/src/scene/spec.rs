@@ -270,6 +270,8 @@ pub struct SolverSpec {
     pub retry_other_projection: bool,
     /// The fill-reducing ordering of the sparse Cholesky factorisations.
     pub ordering: OrderingSpec,
+    /// The arithmetic of the sparse Cholesky factorisations.
+    pub factor_precision: PrecisionSpec,
     /// The most substeps a step may be split into when a point's straight path over it would
     /// pass through a body ([`crate::sweep`]): the step is solved again as 2, 4, 8, … substeps
     /// up to this many; 1 never splits (such a step fails at once).
@@ -288,6 +290,19 @@ pub enum OrderingSpec {
     Amd,
     /// Nested dissection (METIS), on the D×D blocks of the unknowns.
     NestedDissection,
+}
+
+/// The arithmetic of the Newton systems' Cholesky factorisations (`solver.factor_precision`).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Deserialize, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum PrecisionSpec {
+    /// Factors and solves in double precision.
+    #[default]
+    Double,
+    /// Factors in single precision (the matrix scaled to a unit diagonal), every solve refined
+    /// to double precision by conjugate gradients preconditioned with the factor; a matrix it
+    /// cannot solve so is factorised in double precision.
+    Mixed,
 }
 
 /// What Newton's convergence test `‖p‖/Δt < tolerance` measures (`solver.newton_test`).
@@ -360,6 +375,7 @@ impl Default for SolverSpec {
             retry_other_projection: true,
             max_substeps: 1024,
             ordering: OrderingSpec::Auto,
+            factor_precision: PrecisionSpec::Double,
         }
     }
 }

@@ -384,6 +384,19 @@ fn slope_sticks_and_slides_with_directions_from_the_last_factor() {
     check_slope_with(3, extra);
 }
 
+/// The same accelerations with single-precision factorisations refined to double precision
+/// (`solver.factor_precision: "mixed"`), alone and as the last factor preconditioning CG.
+#[test]
+fn slope_sticks_and_slides_with_single_precision_factors() {
+    for extra in [
+        r#", "factor_precision": "mixed""#,
+        r#", "factor_precision": "mixed", "linear": "last_factor_cg""#,
+    ] {
+        check_slope_with(2, extra);
+        check_slope_with(3, extra);
+    }
+}
+
 /// A 2D MPM block thrown down and sideways onto a fixed FEM plate with friction μ = 0.5, for
 /// `duration` s, with the given `solver` fields.
 fn sliding_block_2d(duration: f64, solver: &str) -> String {

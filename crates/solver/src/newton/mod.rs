@@ -41,7 +41,7 @@ use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering as AtomicOrdering};
 use std::time::Instant;
 
-use crate::linear::{Cholesky, LinearError, Ordering, Threads};
+use crate::linear::{Cholesky, LinearError, Ordering, Precision, Threads};
 use crate::pcg::Pcg;
 use crate::{SolveError, Triplets, UpperCsc};
 
@@ -61,6 +61,7 @@ pub struct Newton {
     triplets: Triplets,
     ordering: Ordering,
     threads: Threads,
+    precision: Precision,
     free: Vec<u32>,
     free_dofs: Vec<usize>,
     g: Vec<f64>,
@@ -118,6 +119,7 @@ impl Newton {
             triplets: Triplets::default(),
             ordering: Ordering::Auto,
             threads: Threads::Auto,
+            precision: Precision::Double,
             free: Vec::new(),
             free_dofs: Vec::new(),
             g: Vec::new(),
@@ -206,10 +208,15 @@ impl Newton {
     /// Free-DOF numbering and buffers for a solve (rebuilt per solve; the symbolic
     /// factorisation survives if the pattern of the free part is unchanged).
     fn prepare(&mut self, fixed: &[bool], params: &NewtonParams) {
-        if params.ordering != self.ordering || params.threads != self.threads {
-            self.lin.chol = Cholesky::new(params.ordering, params.threads);
+        if params.ordering != self.ordering
+            || params.threads != self.threads
+            || params.precision != self.precision
+        {
+            self.lin.chol =
+                Cholesky::with_precision(params.ordering, params.threads, params.precision);
             self.ordering = params.ordering;
             self.threads = params.threads;
+            self.precision = params.precision;
         }
         let n = fixed.len();
         self.free.clear();
@@ -628,9 +635,7 @@ impl Newton {
                 .and_then(|()| self.lin.chol.factorize(&mut self.lin.csc))
                 .map_err(Failure::Linear)?;
             self.prescribed_part(fixed, target, x);
-            if nf > 0 {
-                self.lin.chol.solve_in_place(&mut self.rhs);
-            }
+            self.solve_factorised()?;
         }
         Ok(Solved {
             exact: exact && factorized,
@@ -698,46 +703,67 @@ impl Newton {
                 self.lin.chol.factorize(&mut self.lin.csc).map(|()| true)
             }
             .map_err(Failure::Linear)?;
-            if factorized {
+            // (A single-precision factor's refined solve may still find the matrix indefinite.)
+            if factorized && self.solve_factorised()? {
                 self.factor_ready = true;
                 if exact {
                     state.exact.accepted(&mut state.stats);
                 }
-                self.lin.chol.solve_in_place(&mut self.rhs);
                 return Ok(Solved {
                     exact,
                     loose: false,
                 });
             }
-        }
-        if exact {
-            if factorized {
-                state.exact.accepted(&mut state.stats);
-            } else {
-                state.exact.rejected(&mut state.stats);
+            factorized = false;
+        } else if factorized {
+            self.prescribed_part(problem.fixed, problem.target, x);
+            if self.solve_factorised()? {
+                if exact {
+                    state.exact.accepted(&mut state.stats);
+                }
+                return Ok(Solved {
+                    exact,
+                    loose: false,
+                });
             }
+            factorized = false;
         }
-        if !factorized {
-            let t = Instant::now();
-            self.triplets.clear();
-            obj.hessian(x, &mut self.triplets);
-            state.stats.assembly_s += t.elapsed().as_secs_f64();
-            let result = self
-                .lin
-                .assemble(&self.triplets, &self.free, self.free_dofs.len())
-                .and_then(|()| self.lin.chol.factorize(&mut self.lin.csc));
-            state.stats.assembly_s += std::mem::take(&mut self.lin.csc_s);
-            result.map_err(Failure::Linear)?;
-            self.factor_ready = true;
+        // The exact Hessian is indefinite: the projected one, factorised with diagonal shifts.
+        debug_assert!(!factorized);
+        self.factor_ready = false;
+        if exact {
+            state.exact.rejected(&mut state.stats);
         }
+        let t = Instant::now();
+        self.triplets.clear();
+        obj.hessian(x, &mut self.triplets);
+        state.stats.assembly_s += t.elapsed().as_secs_f64();
+        let result = self
+            .lin
+            .assemble(&self.triplets, &self.free, self.free_dofs.len())
+            .and_then(|()| self.lin.chol.factorize(&mut self.lin.csc));
+        state.stats.assembly_s += std::mem::take(&mut self.lin.csc_s);
+        result.map_err(Failure::Linear)?;
+        self.factor_ready = true;
         self.prescribed_part(problem.fixed, problem.target, x);
-        if !self.free_dofs.is_empty() {
-            self.lin.chol.solve_in_place(&mut self.rhs);
-        }
+        self.solve_factorised()?;
         Ok(Solved {
-            exact: exact && factorized,
+            exact: false,
             loose: false,
         })
+    }
+
+    /// `rhs` solved in place with the matrix just factorised (allowed diagonal shifts, or
+    /// tried without): a triangular solve, or a single-precision factor's solve refined to
+    /// double precision ([`Cholesky::solve_refined`]). `false` if the refinement found a
+    /// tried matrix not positive definite after all (`rhs` unchanged).
+    fn solve_factorised(&mut self) -> Result<bool, Failure> {
+        if self.free_dofs.is_empty() {
+            return Ok(true);
+        }
+        let Linear { chol, csc, .. } = &mut self.lin;
+        chol.solve_refined(csc, &mut self.rhs, &mut self.pcg, &mut self.sol)
+            .map_err(Failure::Linear)
     }
 
     /// The direction `p`: prescribed increments of the fixed DOFs (set by

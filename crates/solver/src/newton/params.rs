@@ -2,7 +2,7 @@
 //! problem (fixed DOFs, targets).
 
 use crate::Triplets;
-use crate::linear::{Ordering, Threads};
+use crate::linear::{Ordering, Precision, Threads};
 
 /// What limited a step: the objective's answer to "how far can we go along `p`".
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
@@ -185,6 +185,9 @@ pub struct NewtonParams {
     pub ordering: Ordering,
     /// Threading of the factorisation.
     pub threads: Threads,
+    /// Arithmetic of the factorisation ([`crate::Precision::Mixed`]: single-precision factors,
+    /// directions refined to double precision).
+    pub precision: Precision,
     /// Which Hessian the iterations factorise.
     pub hessian: HessianStrategy,
     /// How the Newton direction is solved for.
@@ -210,6 +213,7 @@ impl Default for NewtonParams {
             min_step: 1e-14,
             ordering: Ordering::Auto,
             threads: Threads::Auto,
+            precision: Precision::Double,
             hessian: HessianStrategy::Projected,
             linear: LinearSolver::Cholesky,
             reuse_hessian_below: 0.0,

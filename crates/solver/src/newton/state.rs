@@ -112,6 +112,8 @@ impl SolveState {
         s.solve_s = chol.stats.solve_s - lin0.solve_s;
         s.regularizations = chol.stats.regularizations - lin0.regularizations;
         s.symbolic_analyses = chol.stats.symbolic_count - lin0.symbolic_count;
+        s.refine_iterations = chol.stats.refine_iterations - lin0.refine_iterations;
+        s.double_fallbacks = chol.stats.double_fallbacks - lin0.double_fallbacks;
         let stats = Box::new(self.stats);
         match outcome {
             Ok(()) => Ok(*stats),

@@ -56,6 +56,11 @@ pub struct SolveStats {
     pub pcg_tightened: usize,
     /// Seconds in conjugate gradients.
     pub pcg_s: f64,
+    /// [`crate::Precision::Mixed`]: CG iterations refining single-precision solves (their
+    /// seconds are in `solve_s`).
+    pub refine_iterations: usize,
+    /// [`crate::Precision::Mixed`]: matrices factorised again in double precision.
+    pub double_fallbacks: usize,
     /// Seconds assembling gradient and Hessian (objective calls and CSC build). Work, not wall
     /// time: the gradient is computed while another thread builds the CSC and factorises.
     pub assembly_s: f64,
@@ -126,6 +131,8 @@ impl std::ops::AddAssign<&SolveStats> for SolveStats {
         self.pcg_fallbacks += s.pcg_fallbacks;
         self.pcg_tightened += s.pcg_tightened;
         self.pcg_s += s.pcg_s;
+        self.refine_iterations += s.refine_iterations;
+        self.double_fallbacks += s.double_fallbacks;
         self.assembly_s += s.assembly_s;
         self.symbolic_s += s.symbolic_s;
         self.numeric_s += s.numeric_s;
