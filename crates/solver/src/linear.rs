@@ -141,6 +141,34 @@ pub struct LinearStats {
     pub double_fallbacks: usize,
 }
 
+/// One numeric factorisation into `l` of the matrix with `a`'s pattern and the values `values`
+/// (in `T`'s precision), analysed as `symbolic`; whether it succeeded.
+fn numeric_llt<T: faer::traits::ComplexField>(
+    symbolic: &SymbolicCholesky<usize>,
+    l: &mut [T],
+    a: &UpperCsc,
+    values: &[T],
+    par: Par,
+    buffer: &mut MemBuffer,
+) -> bool {
+    let n = a.n;
+    let mat = SparseColMatRef::new(
+        SymbolicSparseColMatRef::new_checked(n, n, &a.col_ptr, None, &a.row_idx),
+        values,
+    );
+    symbolic
+        .factorize_numeric_llt(
+            l,
+            mat,
+            Side::Upper,
+            LltRegularization::default(),
+            par,
+            MemStack::new(buffer),
+            Default::default(),
+        )
+        .is_ok()
+}
+
 /// A reusable sparse Cholesky solver.
 pub struct Cholesky {
     ordering: Ordering,
@@ -346,22 +374,15 @@ impl Cholesky {
         }
         self.l_single.resize(symbolic.len_val(), 0.0);
         let par = self.par(symbolic.len_val(), n);
-        let mat = SparseColMatRef::new(
-            SymbolicSparseColMatRef::new_checked(n, n, &a.col_ptr, None, &a.row_idx),
-            &self.scaled,
-        );
         self.stats.numeric_count += 1;
-        let ok = symbolic
-            .factorize_numeric_llt(
-                &mut self.l_single,
-                mat,
-                Side::Upper,
-                LltRegularization::default(),
-                par,
-                MemStack::new(&mut self.buffer),
-                Default::default(),
-            )
-            .is_ok();
+        let ok = numeric_llt(
+            symbolic,
+            &mut self.l_single,
+            a,
+            &self.scaled,
+            par,
+            &mut self.buffer,
+        );
         self.single = ok;
         self.stats.numeric_s += t.elapsed().as_secs_f64();
         Ok(ok)
@@ -386,22 +407,15 @@ impl Cholesky {
         let mut delta = 0.0;
         let mut shifts = 0;
         loop {
-            let mat = SparseColMatRef::new(
-                SymbolicSparseColMatRef::new_checked(n, n, &a.col_ptr, None, &a.row_idx),
-                &a.values,
-            );
             self.stats.numeric_count += 1;
-            let ok = symbolic
-                .factorize_numeric_llt(
-                    &mut self.l_values,
-                    mat,
-                    Side::Upper,
-                    LltRegularization::default(),
-                    par,
-                    MemStack::new(&mut self.buffer),
-                    Default::default(),
-                )
-                .is_ok();
+            let ok = numeric_llt(
+                symbolic,
+                &mut self.l_values,
+                a,
+                &a.values,
+                par,
+                &mut self.buffer,
+            );
             if ok {
                 break;
             }
@@ -459,11 +473,10 @@ impl Cholesky {
     /// double-precision factor a triangular solve ([`Cholesky::solve_in_place`]); with a
     /// single-precision one CG on `a` preconditioned with it, to [`REFINE_RTOL`] (`pcg`'s
     /// buffers and `sol` as workspace; [`Cholesky::set_refinement`]). If CG does not get there
-    /// in [`REFINE_ITERATIONS`] (or
-    /// meets non-positive curvature), `a` is factorised in double precision — with the
-    /// diagonal shifts the last factorisation was allowed — and solved directly: `Ok(false)`
-    /// (`rhs` unchanged) if that was a try ([`Cholesky::try_factorize`]) and `a` is not
-    /// positive definite.
+    /// in [`REFINE_ITERATIONS`] (or meets non-positive curvature), `a` is factorised in double
+    /// precision — with the diagonal shifts the last factorisation was allowed — and solved
+    /// directly: `Ok(false)` (`rhs` unchanged) if that was a try ([`Cholesky::try_factorize`])
+    /// and `a` is not positive definite.
     pub fn solve_refined(
         &mut self,
         a: &mut UpperCsc,

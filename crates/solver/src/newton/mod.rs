@@ -703,33 +703,22 @@ impl Newton {
                 self.lin.chol.factorize(&mut self.lin.csc).map(|()| true)
             }
             .map_err(Failure::Linear)?;
-            // (A single-precision factor's refined solve may still find the matrix indefinite.)
-            if factorized && self.solve_factorised()? {
-                self.factor_ready = true;
-                if exact {
-                    state.exact.accepted(&mut state.stats);
-                }
-                return Ok(Solved {
-                    exact,
-                    loose: false,
-                });
-            }
-            factorized = false;
         } else if factorized {
             self.prescribed_part(problem.fixed, problem.target, x);
-            if self.solve_factorised()? {
-                if exact {
-                    state.exact.accepted(&mut state.stats);
-                }
-                return Ok(Solved {
-                    exact,
-                    loose: false,
-                });
-            }
-            factorized = false;
         }
-        // The exact Hessian is indefinite: the projected one, factorised with diagonal shifts.
-        debug_assert!(!factorized);
+        // (A single-precision factor's refined solve may still find the matrix indefinite.)
+        if factorized && self.solve_factorised()? {
+            self.factor_ready = true;
+            if exact {
+                state.exact.accepted(&mut state.stats);
+            }
+            return Ok(Solved {
+                exact,
+                loose: false,
+            });
+        }
+        // The exact Hessian is indefinite (a projected one is factorised with shifts, or its
+        // failure returned): the projected one, factorised with diagonal shifts.
         self.factor_ready = false;
         if exact {
             state.exact.rejected(&mut state.stats);
