@@ -1540,15 +1540,18 @@ fn cholesky_gives_the_same_bits_on_any_number_of_threads() {
     assert_ne!(on(2, Threads::Rayon), on(3, Threads::Rayon));
 }
 
+/// The fixed right-hand side `b` the solve tests use.
+fn fixed_rhs(n: usize) -> Vec<f64> {
+    (0..n).map(|i| ((i * 7919) % 101) as f64 - 50.0).collect()
+}
+
 /// The bits of `a x = b` solved by a factorisation with `ordering` and `threads` (a fixed `b`).
 fn solved_bits(a: &femp_solver::UpperCsc, ordering: Ordering, threads: Threads) -> Vec<u64> {
     let mut ch = femp_solver::Cholesky::new(ordering, threads);
     let mut a = a.clone();
     ch.analyze(&a).unwrap();
     ch.factorize(&mut a).unwrap();
-    let mut x: Vec<f64> = (0..a.n())
-        .map(|i| ((i * 7919) % 101) as f64 - 50.0)
-        .collect();
+    let mut x = fixed_rhs(a.n());
     ch.solve_in_place(&mut x);
     x.iter().map(|v| v.to_bits()).collect()
 }
@@ -1573,9 +1576,7 @@ fn solve_in(
     } else {
         ch.factorize(&mut a).unwrap();
     }
-    let mut x: Vec<f64> = (0..a.n())
-        .map(|i| ((i * 7919) % 101) as f64 - 50.0)
-        .collect();
+    let mut x = fixed_rhs(a.n());
     if refine {
         let mut sol = vec![0.0; a.n()];
         if !ch
@@ -1683,9 +1684,7 @@ fn mixed_precision_falls_back_to_double_precision_where_single_cannot_solve() {
     let mut a = spread.clone();
     ch.analyze(&a).unwrap();
     ch.factorize(&mut a).unwrap();
-    let mut x: Vec<f64> = (0..a.n())
-        .map(|i| ((i * 7919) % 101) as f64 - 50.0)
-        .collect();
+    let mut x = fixed_rhs(a.n());
     let mut sol = vec![0.0; a.n()];
     assert!(
         ch.solve_refined(&mut a, &mut x, &mut Pcg::new(), &mut sol)
