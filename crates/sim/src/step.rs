@@ -414,20 +414,24 @@ impl Bfemp {
             },
             ..direct
         };
+        // (The first only if the failed attempt solved by CG: with `LinearSolver::Auto` on a
+        // small matrix it was direct solves already.)
         let retries = [
-            (params.linear != LinearSolver::Cholesky).then_some((direct, "direct solves")),
+            (params.linear != LinearSolver::Cholesky).then_some((direct, "direct solves", true)),
             solver.retry_other_projection.then_some((
                 other,
                 match other.hessian {
                     HessianStrategy::Projected => "projected Newton",
                     _ => "the exact Hessian when definite",
                 },
+                false,
             )),
         ];
         let mut retries = retries.iter().flatten();
         let mut attempt = (*params, "");
         // The failures so far, as one error (the latest first).
         let mut so_far: Option<SimError> = None;
+        let mut solved_by_cg = false;
         loop {
             let e = match solve(obj, x, &attempt.0, report) {
                 Ok(()) => {
@@ -444,6 +448,7 @@ impl Bfemp {
             if let Some(stats) = e.0.stats() {
                 report.newton_iterations += stats.iterations;
                 report.stats += stats;
+                solved_by_cg = stats.pcg_iterations > 0;
             }
             let e = match (failed(e), so_far.take()) {
                 (e, None) => e,
@@ -461,7 +466,7 @@ impl Bfemp {
                 },
                 (e, Some(_)) => e,
             };
-            let Some(&(next, how)) = retries.next() else {
+            let Some(&(next, how, _)) = retries.find(|r| !r.2 || solved_by_cg) else {
                 return Err(e);
             };
             so_far = Some(e);
@@ -556,6 +561,7 @@ fn newton_params<const D: usize>(solver: &SolverSpec, dt: f64) -> NewtonParams {
         },
         threads: Threads::Auto,
         precision: match solver.factor_precision {
+            PrecisionSpec::Auto => Precision::Auto,
             PrecisionSpec::Double => Precision::Double,
             PrecisionSpec::Mixed => Precision::Mixed,
         },
@@ -574,6 +580,10 @@ fn newton_params<const D: usize>(solver: &SolverSpec, dt: f64) -> NewtonParams {
                 },
             },
             LinearSpec::LastFactorCg => LinearSolver::LastFactorCg {
+                rtol: solver.factor_cg_rtol,
+                max_iterations: solver.factor_cg_iterations,
+            },
+            LinearSpec::Auto => LinearSolver::Auto {
                 rtol: solver.factor_cg_rtol,
                 max_iterations: solver.factor_cg_iterations,
             },

@@ -42,7 +42,7 @@ pub use error::SolveError;
 pub use integrator::Integrator;
 pub use linear::{
     Cholesky, FACTOR_TASKS, LinearError, LinearStats, Ordering, Precision, REFINE_ITERATIONS,
-    REFINE_RTOL, Threads,
+    REFINE_RTOL, Threads, large_factor,
 };
 pub use newton::{
     Forcing, HessianStrategy, IterationRecord, LinearSolver, Newton, NewtonParams, Objective,

@@ -59,6 +59,20 @@ pub enum Precision {
     /// Factor in single precision (of the matrix scaled to a unit diagonal), solves refined to
     /// double precision by CG preconditioned with it ([`Cholesky::solve_refined`]).
     Mixed,
+    /// [`Precision::Mixed`] for a [`large_factor`], [`Precision::Double`] otherwise — decided
+    /// at each symbolic analysis, from the matrix alone. Measured (`docs/performance.md`): 1.5×
+    /// on the factorisations of 3D Newton matrices with 5·10⁷ factor entries; no gain with
+    /// 6·10⁵, where the refinement's products and the double-precision re-factorisations of
+    /// rejected exact Hessians eat what the factorisations save.
+    Auto,
+}
+
+/// Whether a factor with `factor_nnz` entries of an `n`-unknown matrix is large and dense
+/// enough for parallel factorisation ([`Threads::Auto`]), single precision
+/// ([`Precision::Auto`]) and factor reuse by CG (`LinearSolver::Auto`) to pay:
+/// `nnz(L) > 2·10⁷` and `nnz(L)/n > 300`.
+pub fn large_factor(factor_nnz: usize, n: usize) -> bool {
+    factor_nnz > 20_000_000 && factor_nnz / n.max(1) > 300
 }
 
 /// [`Precision::Mixed`]: the relative reduction of the factor-preconditioned residual
@@ -92,8 +106,8 @@ pub enum Threads {
     /// number of threads (faer's split, and with it its summation order, follows the task
     /// count; it is not that of the sequential factorisation). Measured (see
     /// `docs/performance.md`), 2 threads were slower than 1 on every 2D matrix and on small 3D
-    /// ones, 1.4× faster on the 3D matrix with 10⁵ unknowns. Rule: `nnz(L) > 2·10⁷` and
-    /// `nnz(L)/n > 300` (a property of the matrix alone).
+    /// ones, 1.4× faster on the 3D matrix with 10⁵ unknowns. Rule: [`large_factor`] (a
+    /// property of the matrix alone).
     #[default]
     Auto,
 }
@@ -174,6 +188,9 @@ pub struct Cholesky {
     ordering: Ordering,
     threads: Threads,
     precision: Precision,
+    /// Whether factorisations are single precision: [`Precision::Mixed`], or
+    /// [`Precision::Auto`] for the analysed matrix.
+    mixed: bool,
     symbolic: Option<SymbolicCholesky<usize>>,
     l_values: Vec<f64>,
     /// [`Precision::Mixed`]: the single-precision factor of `D A D`, `D` = `scale`.
@@ -207,6 +224,7 @@ impl Cholesky {
             ordering,
             threads,
             precision,
+            mixed: precision == Precision::Mixed,
             symbolic: None,
             l_values: Vec::new(),
             l_single: Vec::new(),
@@ -242,8 +260,7 @@ impl Cholesky {
             Threads::Rayon => Par::rayon(0),
             Threads::Tasks(n) => Par::rayon(n.max(1)),
             Threads::Auto => {
-                let n = n.max(1);
-                if factor_nnz > 20_000_000 && factor_nnz / n > 300 {
+                if large_factor(factor_nnz, n) {
                     Par::rayon(FACTOR_TASKS)
                 } else {
                     Par::Seq
@@ -286,10 +303,16 @@ impl Cholesky {
             ),
         };
         let symbolic = result.map_err(|e| LinearError::Symbolic(format!("{e:?}")))?;
-        match self.precision {
-            Precision::Double => self.l_values.resize(symbolic.len_val(), 0.0),
+        self.mixed = match self.precision {
+            Precision::Double => false,
+            Precision::Mixed => true,
+            Precision::Auto => large_factor(symbolic.len_val(), n),
+        };
+        if self.mixed {
             // The double-precision factor is made (and its memory taken) only if needed.
-            Precision::Mixed => self.l_single.resize(symbolic.len_val(), 0.0),
+            self.l_single.resize(symbolic.len_val(), 0.0);
+        } else {
+            self.l_values.resize(symbolic.len_val(), 0.0);
         }
         self.single = false;
         self.stats.factor_nnz = symbolic.len_val();
@@ -297,7 +320,7 @@ impl Cholesky {
         let mut req = symbolic
             .factorize_numeric_llt_scratch::<f64>(par, Default::default())
             .or(symbolic.solve_in_place_scratch::<f64>(1, par));
-        if self.precision == Precision::Mixed {
+        if self.mixed {
             req = req
                 .or(symbolic.factorize_numeric_llt_scratch::<f32>(par, Default::default()))
                 .or(symbolic.solve_in_place_scratch::<f32>(1, par));
@@ -312,6 +335,19 @@ impl Cholesky {
     /// Whether a symbolic analysis is available.
     pub fn is_analyzed(&self) -> bool {
         self.symbolic.is_some()
+    }
+
+    /// Whether the analysed matrix's factor is a [`large_factor`] (false before an analysis).
+    pub fn is_large(&self) -> bool {
+        self.symbolic
+            .as_ref()
+            .is_some_and(|s| large_factor(s.len_val(), s.nrows()))
+    }
+
+    /// Whether the factorisations of the analysed matrix are made in single precision
+    /// ([`Precision::Mixed`], or [`Precision::Auto`] for a [`large_factor`]).
+    pub fn is_mixed(&self) -> bool {
+        self.mixed
     }
 
     /// Numeric factorisation of `a` (analysed before), shifting the diagonal on failure.
@@ -337,7 +373,7 @@ impl Cholesky {
     ) -> Result<(), LinearError> {
         self.last_max_shifts = max_shifts;
         self.single = false;
-        if self.precision == Precision::Mixed {
+        if self.mixed {
             if self.factorize_single(a)? {
                 return Ok(());
             }

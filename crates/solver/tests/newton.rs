@@ -2190,3 +2190,181 @@ fn nested_dissection_is_the_same_made_on_several_threads_at_once() {
         "{differing} of 48 solves differ from the one made alone"
     );
 }
+
+/// Upper-triangle triplets (row ≤ col) of an SPD matrix with the pattern of the MPM part of
+/// femp's 3D Newton matrices: `m³` grid nodes of 3 DOFs, each coupled with the 5³ nodes within
+/// two cells (a quadratic B-spline's reach), diagonally dominant.
+fn bspline_grid(m: usize) -> Triplets {
+    let node = |i: usize, j: usize, k: usize| (i * m + j) * m + k;
+    let n = 3 * m * m * m;
+    let mut diag = vec![1.0; n];
+    let mut t = Triplets::default();
+    let mut couple = |t: &mut Triplets, r: usize, c: usize, v: f64| {
+        t.push(r, c, v);
+        diag[r] += v.abs();
+        diag[c] += v.abs();
+    };
+    for (i, j, k) in (0..m).flat_map(|i| (0..m).flat_map(move |j| (0..m).map(move |k| (i, j, k)))) {
+        let a = node(i, j, k);
+        for p in 0..3 {
+            for q in p + 1..3 {
+                couple(&mut t, 3 * a + p, 3 * a + q, 0.3);
+            }
+        }
+        for (di, dj, dk) in (-2i64..=2)
+            .flat_map(|x| (-2i64..=2).flat_map(move |y| (-2i64..=2).map(move |z| (x, y, z))))
+        {
+            let (bi, bj, bk) = (i as i64 + di, j as i64 + dj, k as i64 + dk);
+            if [bi, bj, bk].iter().any(|&c| c < 0 || c >= m as i64) {
+                continue;
+            }
+            let b = node(bi as usize, bj as usize, bk as usize);
+            if b <= a {
+                continue;
+            }
+            let d2 = (di * di + dj * dj + dk * dk) as f64;
+            for p in 0..3 {
+                for q in 0..3 {
+                    couple(
+                        &mut t,
+                        3 * a + p,
+                        3 * b + q,
+                        -1.0 / (1.0 + d2 + (p + 2 * q) as f64),
+                    );
+                }
+            }
+        }
+    }
+    for (d, v) in diag.into_iter().enumerate() {
+        t.push(d, d, v);
+    }
+    t
+}
+
+/// `E = ½ xᵀAx − bᵀx + Σ xᵢ⁴/4` for `A` given by upper-triangle triplets: Newton takes a few
+/// iterations, each with its own Hessian `A + diag(3xᵢ²)` on one pattern.
+struct QuarticOn {
+    a: Triplets,
+    n: usize,
+}
+
+impl QuarticOn {
+    fn b(d: usize) -> f64 {
+        ((d * 7919) % 13) as f64 / 4.0 - 1.0
+    }
+}
+
+impl Objective for QuarticOn {
+    fn num_dofs(&self) -> usize {
+        self.n
+    }
+    fn energy(&mut self, x: &[f64]) -> f64 {
+        let quadratic: f64 = self
+            .a
+            .iter()
+            .map(|(r, c, v)| {
+                if r == c {
+                    0.5 * v * x[r] * x[r]
+                } else {
+                    v * x[r] * x[c]
+                }
+            })
+            .sum();
+        quadratic
+            + x.iter()
+                .enumerate()
+                .map(|(d, xd)| xd.powi(4) / 4.0 - Self::b(d) * xd)
+                .sum::<f64>()
+    }
+    fn gradient(&mut self, x: &[f64], g: &mut [f64]) {
+        for (d, gd) in g.iter_mut().enumerate() {
+            *gd = x[d].powi(3) - Self::b(d);
+        }
+        for (r, c, v) in self.a.iter() {
+            g[r] += v * x[c];
+            if r != c {
+                g[c] += v * x[r];
+            }
+        }
+    }
+    fn hessian(&mut self, x: &[f64], h: &mut Triplets) {
+        h.append(&self.a);
+        for (d, xd) in x.iter().enumerate() {
+            h.push(d, d, 3.0 * xd * xd);
+        }
+    }
+}
+
+/// `Precision::Auto` and `LinearSolver::Auto` follow `large_factor`: on a small matrix they are
+/// double-precision factorisations of every Hessian — bit for bit `Double` and `Cholesky` —,
+/// on one the size of block_on_plate_3d's (8 000 nodes of the B-spline's 5³ stencil, 24 000
+/// unknowns: a factor of more than 2·10⁷ entries) the factorisations are single precision,
+/// refined to double, and after a solve's first factorisation Newton's directions come from CG
+/// preconditioned with the last factor, to the same minimiser.
+#[test]
+fn auto_settings_take_single_precision_and_the_last_factor_only_for_large_factors() {
+    let small = matrices::grid3(8);
+    let auto = solve_in(&small.csc, Precision::Auto, false, true).unwrap();
+    let double = solve_in(&small.csc, Precision::Double, false, true).unwrap();
+    let bits = |x: &[f64]| x.iter().map(|v| v.to_bits()).collect::<Vec<_>>();
+    assert_eq!(bits(&auto.0), bits(&double.0));
+    assert_eq!((auto.1.refine_iterations, auto.1.numeric_count), (0, 1));
+
+    let minimise = |a: &Triplets, n: usize, linear: LinearSolver, precision: Precision| {
+        let mut x = vec![0.0; n];
+        let params = NewtonParams {
+            linear,
+            precision,
+            tolerance: 1e-9,
+            ..Default::default()
+        };
+        let stats = Newton::new()
+            .minimize(
+                &mut QuarticOn { a: a.clone(), n },
+                &mut x,
+                &vec![false; n],
+                &params,
+            )
+            .unwrap();
+        (x, stats)
+    };
+    let auto_linear = LinearSolver::Auto {
+        rtol: 1e-3,
+        max_iterations: 16,
+    };
+    let mut small_t = Triplets::default();
+    for (r, c, v) in small.triplets.iter().filter(|&(r, c, _)| r <= c) {
+        small_t.push(r, c, v);
+    }
+    let n = small.csc.n();
+    let (xa, sa) = minimise(&small_t, n, auto_linear, Precision::Auto);
+    let (xc, sc) = minimise(&small_t, n, LinearSolver::Cholesky, Precision::Double);
+    assert_eq!(bits(&xa), bits(&xc));
+    assert_eq!(
+        (sa.iterations, sa.pcg_iterations, sa.refine_iterations),
+        (sc.iterations, 0, 0),
+        "{sa:?}"
+    );
+    assert!(sa.iterations >= 3, "{sa:?}");
+
+    let large = bspline_grid(20);
+    let n = 3 * 20 * 20 * 20;
+    let mut a = femp_solver::UpperCsc::default();
+    a.assemble(&large, &(0..n as u32).collect::<Vec<_>>(), n);
+    let mut ch = Cholesky::with_precision(Ordering::Auto, Threads::Auto, Precision::Auto);
+    ch.analyze(&a).unwrap();
+    assert!(ch.is_large() && ch.is_mixed(), "{:?}", ch.stats);
+    let mut ch_small = Cholesky::with_precision(Ordering::Auto, Threads::Auto, Precision::Auto);
+    ch_small.analyze(&small.csc).unwrap();
+    assert!(!ch_small.is_large() && !ch_small.is_mixed());
+
+    let (x, stats) = minimise(&large, n, auto_linear, Precision::Auto);
+    assert!(
+        stats.pcg_iterations > 0 && stats.refine_iterations > 0 && stats.iterations >= 3,
+        "{stats:?}"
+    );
+    let mut g = vec![0.0; n];
+    QuarticOn { a: large, n }.gradient(&x, &mut g);
+    let residual = g.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+    assert!(residual < 1e-7, "{residual:e}: {stats:?}");
+}

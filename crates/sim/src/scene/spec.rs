@@ -296,8 +296,11 @@ pub enum OrderingSpec {
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Deserialize, Serialize)]
 #[serde(rename_all = "snake_case")]
 pub enum PrecisionSpec {
-    /// Factors and solves in double precision.
+    /// `mixed` where the factor is large (more than 2·10⁷ entries, over 300 a row: 3D systems
+    /// of 20 000 unknowns and more), `double` otherwise. The default.
     #[default]
+    Auto,
+    /// Factors and solves in double precision.
     Double,
     /// Factors in single precision (the matrix scaled to a unit diagonal), every solve refined
     /// to double precision by conjugate gradients preconditioned with the factor; a matrix it
@@ -321,8 +324,11 @@ pub enum NewtonTestSpec {
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Deserialize, Serialize)]
 #[serde(rename_all = "snake_case")]
 pub enum LinearSpec {
-    /// Sparse Cholesky of every Hessian.
+    /// `last_factor_cg` where the factor is large (as `factor_precision: "auto"`),
+    /// `cholesky` otherwise. The default.
     #[default]
+    Auto,
+    /// Sparse Cholesky of every Hessian.
     Cholesky,
     /// Jacobi-preconditioned conjugate gradients, Cholesky when CG cannot.
     Pcg,
@@ -359,7 +365,7 @@ impl Default for SolverSpec {
             max_newton_iterations: 100,
             max_friction_iterations: 20,
             projection: ProjectionSpec::WhenIndefinite,
-            linear: LinearSpec::Cholesky,
+            linear: LinearSpec::Auto,
             pcg_rtol: 1e-6,
             pcg_max_iterations: 200,
             factor_cg_rtol: 1e-3,
@@ -375,7 +381,7 @@ impl Default for SolverSpec {
             retry_other_projection: true,
             max_substeps: 1024,
             ordering: OrderingSpec::Auto,
-            factor_precision: PrecisionSpec::Double,
+            factor_precision: PrecisionSpec::Auto,
         }
     }
 }

@@ -83,14 +83,22 @@ fn unknown_fields_are_named_with_their_path() {
     v["solver"] = json!({ "linear": "lu" });
     expect_error(
         &v,
-        &["solver.linear", "lu", "`cholesky`, `pcg`, `last_factor_cg`"],
+        &[
+            "solver.linear",
+            "lu",
+            "`auto`, `cholesky`, `pcg`, `last_factor_cg`",
+        ],
     );
 
     let mut v = base();
     v["solver"] = json!({ "factor_precision": "half" });
     expect_error(
         &v,
-        &["solver.factor_precision", "half", "`double` or `mixed`"],
+        &[
+            "solver.factor_precision",
+            "half",
+            "`auto`, `double`, `mixed`",
+        ],
     );
 }
 

@@ -709,6 +709,19 @@ fn a_step_whose_cg_solve_fails_is_solved_again_with_direct_solves() {
                 == 2,
         "{err}"
     );
+    // `"auto"` solves this small system's directions directly (its factor is far from large):
+    // a failed step is not solved again the same way.
+    let auto = loose_cg_impact(8, 0.125).replace(r#""last_factor_cg""#, r#""auto""#);
+    assert!(auto.contains(r#""linear": "auto""#));
+    let err = try_run_scene(&auto).unwrap_err().to_string();
+    assert!(
+        !err.contains("retried")
+            && err
+                .matches("failed: Newton did not converge in 8 iterations")
+                .count()
+                == 1,
+        "{err}"
+    );
 }
 
 /// `World::record_newton_iterations`: every Newton iteration of a step is recorded, with the

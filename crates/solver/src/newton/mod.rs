@@ -77,7 +77,7 @@ pub struct Newton {
     /// Whether solves record every iteration in [`SolveStats::trace`].
     record: bool,
     /// A factorisation of this solve's matrix size is held ([`LinearSolver::LastFactorCg`]
-    /// may precondition with it).
+    /// and [`LinearSolver::Auto`] may precondition with it).
     factor_ready: bool,
 }
 
@@ -480,6 +480,17 @@ impl Newton {
                 rtol,
                 max_iterations,
             } if reuse.is_none() && !cg && self.factor_ready && nf > 0 => {
+                Some((rtol, max_iterations))
+            }
+            LinearSolver::Auto {
+                rtol,
+                max_iterations,
+            } if reuse.is_none()
+                && !cg
+                && self.factor_ready
+                && nf > 0
+                && self.lin.chol.is_large() =>
+            {
                 Some((rtol, max_iterations))
             }
             _ => None,

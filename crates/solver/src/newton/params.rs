@@ -147,6 +147,18 @@ pub enum LinearSolver {
         /// Products before the matrix is factorised.
         max_iterations: usize,
     },
+    /// [`LinearSolver::LastFactorCg`] while the analysed matrix's factor is a
+    /// [`crate::large_factor`], [`LinearSolver::Cholesky`] otherwise (decided at each
+    /// iteration from the current symbolic analysis, a property of the matrix alone). Measured
+    /// (`docs/performance.md`): 1.3–1.5× per Newton iteration on 3D matrices with 5·10⁷ factor
+    /// entries, where a factorisation costs tens of CG iterations; on small matrices a
+    /// factorisation costs a few, and the exact directions keep the iteration counts.
+    Auto {
+        /// Relative reduction of the preconditioned residual.
+        rtol: f64,
+        /// Products before the matrix is factorised.
+        max_iterations: usize,
+    },
 }
 
 /// How accurately conjugate gradients solve each Newton direction.
