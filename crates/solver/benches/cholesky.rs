@@ -1,7 +1,9 @@
 //! Sparse Cholesky on elasticity-like SPD matrices (2D: 2 DOFs/node, 3D: 3 DOFs/node,
 //! 10⁴–4·10⁵ unknowns): symbolic analysis (AMD vs. METIS nested dissection), numeric
 //! factorisation (1 thread, the pool's threads, and `Threads::Auto`'s fixed 8-task split) and
-//! solve, timed separately. Prints the factor fill once.
+//! solve, timed separately. Prints the factor fill once. Then single against double precision
+//! factorisations and solves on the B-spline pattern of femp's 3D MPM matrices
+//! (`precision_bspline3d_24k`; `--bench cholesky -- precision` runs only those).
 //! Also the assembly of the matrix from its triplets: a full build (counting sort and merge)
 //! and a build that reuses the previous one's structure (values scattered into place).
 //!
@@ -10,7 +12,7 @@
 //! `fixtures/cholmod/run.sh DIR`.
 
 use criterion::{BenchmarkId, Criterion, criterion_group, criterion_main};
-use femp_solver::{Cholesky, Ordering, Threads, UpperCsc};
+use femp_solver::{Cholesky, FACTOR_TASKS, Ordering, Precision, Threads, UpperCsc};
 
 #[path = "common/matrices.rs"]
 mod matrices;
@@ -78,5 +80,41 @@ fn benches(c: &mut Criterion) {
     }
 }
 
-criterion_group!(cholesky, benches);
+/// Single against double precision on the B-spline pattern of femp's 3D MPM Newton matrices, at
+/// block_on_plate_3d's size (where `Precision::Auto` takes single precision): the numeric
+/// factorisation, and the triangular solve each CG iteration with the last factor makes —
+/// sequential, and in `Threads::Auto`'s fixed split (what femp uses for this size).
+fn precision(c: &mut Criterion) {
+    let case = matrices::bspline3(20);
+    let n = case.csc.n();
+    let mut group = c.benchmark_group(format!("precision_{}", case.name));
+    group.sample_size(10);
+    for (pname, precision) in [("double", Precision::Double), ("single", Precision::Mixed)] {
+        for (tname, threads) in [
+            ("1t", Threads::Seq),
+            ("tasks8", Threads::Tasks(FACTOR_TASKS)),
+        ] {
+            let mut ch = Cholesky::with_precision(
+                Ordering::NestedDissection { block: 3 },
+                threads,
+                precision,
+            );
+            ch.analyze(&case.csc).unwrap();
+            let mut a = case.csc.clone();
+            group.bench_function(BenchmarkId::new(format!("numeric_{pname}"), tname), |b| {
+                b.iter(|| ch.factorize(&mut a).unwrap())
+            });
+            let mut rhs = vec![1.0; n];
+            group.bench_function(BenchmarkId::new(format!("solve_{pname}"), tname), |b| {
+                b.iter(|| {
+                    rhs.fill(1.0);
+                    ch.solve_in_place(&mut rhs)
+                })
+            });
+        }
+    }
+    group.finish();
+}
+
+criterion_group!(cholesky, benches, precision);
 criterion_main!(cholesky);

@@ -2191,56 +2191,6 @@ fn nested_dissection_is_the_same_made_on_several_threads_at_once() {
     );
 }
 
-/// Upper-triangle triplets (row ≤ col) of an SPD matrix with the pattern of the MPM part of
-/// femp's 3D Newton matrices: `m³` grid nodes of 3 DOFs, each coupled with the 5³ nodes within
-/// two cells (a quadratic B-spline's reach), diagonally dominant.
-fn bspline_grid(m: usize) -> Triplets {
-    let node = |i: usize, j: usize, k: usize| (i * m + j) * m + k;
-    let n = 3 * m * m * m;
-    let mut diag = vec![1.0; n];
-    let mut t = Triplets::default();
-    let mut couple = |t: &mut Triplets, r: usize, c: usize, v: f64| {
-        t.push(r, c, v);
-        diag[r] += v.abs();
-        diag[c] += v.abs();
-    };
-    for (i, j, k) in (0..m).flat_map(|i| (0..m).flat_map(move |j| (0..m).map(move |k| (i, j, k)))) {
-        let a = node(i, j, k);
-        for p in 0..3 {
-            for q in p + 1..3 {
-                couple(&mut t, 3 * a + p, 3 * a + q, 0.3);
-            }
-        }
-        for (di, dj, dk) in (-2i64..=2)
-            .flat_map(|x| (-2i64..=2).flat_map(move |y| (-2i64..=2).map(move |z| (x, y, z))))
-        {
-            let (bi, bj, bk) = (i as i64 + di, j as i64 + dj, k as i64 + dk);
-            if [bi, bj, bk].iter().any(|&c| c < 0 || c >= m as i64) {
-                continue;
-            }
-            let b = node(bi as usize, bj as usize, bk as usize);
-            if b <= a {
-                continue;
-            }
-            let d2 = (di * di + dj * dj + dk * dk) as f64;
-            for p in 0..3 {
-                for q in 0..3 {
-                    couple(
-                        &mut t,
-                        3 * a + p,
-                        3 * b + q,
-                        -1.0 / (1.0 + d2 + (p + 2 * q) as f64),
-                    );
-                }
-            }
-        }
-    }
-    for (d, v) in diag.into_iter().enumerate() {
-        t.push(d, d, v);
-    }
-    t
-}
-
 /// `E = ½ xᵀAx − bᵀx + Σ xᵢ⁴/4` for `A` given by upper-triangle triplets: Newton takes a few
 /// iterations, each with its own Hessian `A + diag(3xᵢ²)` on one pattern.
 struct QuarticOn {
@@ -2347,24 +2297,26 @@ fn auto_settings_take_single_precision_and_the_last_factor_only_for_large_factor
     );
     assert!(sa.iterations >= 3, "{sa:?}");
 
-    let large = bspline_grid(20);
-    let n = 3 * 20 * 20 * 20;
-    let mut a = femp_solver::UpperCsc::default();
-    a.assemble(&large, &(0..n as u32).collect::<Vec<_>>(), n);
+    let large = matrices::bspline3(20);
+    let (a, n) = (&large.csc, large.csc.n());
     let mut ch = Cholesky::with_precision(Ordering::Auto, Threads::Auto, Precision::Auto);
-    ch.analyze(&a).unwrap();
+    ch.analyze(a).unwrap();
     assert!(ch.is_large() && ch.is_mixed(), "{:?}", ch.stats);
     let mut ch_small = Cholesky::with_precision(Ordering::Auto, Threads::Auto, Precision::Auto);
     ch_small.analyze(&small.csc).unwrap();
     assert!(!ch_small.is_large() && !ch_small.is_mixed());
 
-    let (x, stats) = minimise(&large, n, auto_linear, Precision::Auto);
+    let (x, stats) = minimise(&large.triplets, n, auto_linear, Precision::Auto);
     assert!(
         stats.pcg_iterations > 0 && stats.refine_iterations > 0 && stats.iterations >= 3,
         "{stats:?}"
     );
     let mut g = vec![0.0; n];
-    QuarticOn { a: large, n }.gradient(&x, &mut g);
+    QuarticOn {
+        a: large.triplets,
+        n,
+    }
+    .gradient(&x, &mut g);
     let residual = g.iter().fold(0.0f64, |m, v| m.max(v.abs()));
     assert!(residual < 1e-7, "{residual:e}: {stats:?}");
 }
