@@ -174,10 +174,19 @@ const EXPERIMENTS: &[Experiment] = &[
     Experiment {
         name: "twist_paper",
         section: "BFEMP 6.7",
-        title: "3D shell twisting an MPM cube at the paper's h = 0.0625: μ = 0.2 and 1",
+        title: "3D shell twisting an MPM cube at the paper's h = 0.0625: μ = 0.2",
         run: experiment::drive::<twist::Twist<twist::Paper>>,
-        // Not run yet: two runs of 4–7 h each (docs/performance.md, the twist at h = 0.0625).
-        wall_s: (0.0, 40000.0),
+        // Not run yet: 2.5–3 h estimated (docs/performance.md, the twist at h = 0.0625).
+        wall_s: (0.0, 10000.0),
+        runs: Runs::FullWhenNamed,
+    },
+    Experiment {
+        name: "twist_paper_mu1",
+        section: "BFEMP 6.7",
+        title: "3D shell twisting an MPM cube at the paper's h = 0.0625: μ = 1",
+        run: experiment::drive::<twist::Twist<twist::PaperMu1>>,
+        // Not run yet: 5.5–7 h estimated.
+        wall_s: (0.0, 23000.0),
         runs: Runs::FullWhenNamed,
     },
     Experiment {
@@ -333,7 +342,7 @@ fn parse_args(args: &[String]) -> Result<Option<Args>> {
                         Runs::Full => " [full tier]",
                         Runs::FullWhenNamed => " [full tier, only when named]",
                     };
-                    println!("  {:14} {:11} {}{tiers}", e.name, e.section, e.title);
+                    println!("  {:15} {:11} {}{tiers}", e.name, e.section, e.title);
                 }
                 return Ok(None);
             }
@@ -723,6 +732,7 @@ mod tests {
             ("twist", true, true),
             ("twist_fine", false, true),
             ("twist_paper", false, false),
+            ("twist_paper_mu1", false, false),
         ] {
             let e = find(name);
             assert_eq!(e.by_default(Tier::Quick), quick, "{name}");
@@ -730,7 +740,7 @@ mod tests {
             assert!(e.in_tier(Tier::Full), "{name}");
             assert_eq!(e.in_tier(Tier::Quick), quick, "{name}");
         }
-        for n in ["twist_fine", "twist_paper"] {
+        for n in ["twist_fine", "twist_paper", "twist_paper_mu1"] {
             let err = parse_args(&args(&["--only", n]))
                 .err()
                 .expect(n)
@@ -741,13 +751,13 @@ mod tests {
                 .unwrap();
             assert_eq!(ok.only, [n]);
         }
-        // Every experiment but the one run only when named is in the full tier's default run;
-        // naming it runs it; `--report` runs nothing.
+        // Every experiment but the two run only when named is in the full tier's default run;
+        // naming one runs it; `--report` runs nothing.
         let full = selection(Tier::Full, &[], false);
-        assert_eq!(full.len(), EXPERIMENTS.len() - 1);
-        assert!(!full.contains(&"twist_paper"));
+        assert_eq!(full.len(), EXPERIMENTS.len() - 2);
+        assert!(!full.contains(&"twist_paper") && !full.contains(&"twist_paper_mu1"));
         let quick = selection(Tier::Quick, &[], false);
-        assert_eq!(quick.len(), EXPERIMENTS.len() - 2);
+        assert_eq!(quick.len(), EXPERIMENTS.len() - 3);
         assert!(!quick.contains(&"twist_fine"));
         assert_eq!(
             selection(Tier::Full, &args(&["twist_paper", "rings"]), false),

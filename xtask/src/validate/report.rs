@@ -12,11 +12,11 @@ pub fn rows(d: &Done) -> Vec<String> {
     let mut out = Vec::new();
     match &d.outcome {
         None => out.push(format!(
-            "{:14} {:11} {:46} {:>14} {:>16} {:>14} {:6} {:>8}",
+            "{:15} {:11} {:46} {:>14} {:>16} {:>14} {:6} {:>8}",
             d.name, d.section, "(not run in this tier yet)", "", "", "", "-", ""
         )),
         Some(Err(e)) => out.push(format!(
-            "{:14} {:11} {:46} {:>14} {:>16} {:>14} {:6} {:>7.1}s\n    error: {e}",
+            "{:15} {:11} {:46} {:>14} {:>16} {:>14} {:6} {:>7.1}s\n    error: {e}",
             d.name, d.section, "run failed", "", "", "", "FAIL", d.wall_s
         )),
         Some(Ok(o)) => {
@@ -27,7 +27,7 @@ pub fn rows(d: &Done) -> Vec<String> {
                     String::new()
                 };
                 out.push(format!(
-                    "{:14} {:11} {:46} {:>14} {:>16} {:>14} {:6} {:>8}",
+                    "{:15} {:11} {:46} {:>14} {:>16} {:>14} {:6} {:>8}",
                     if k == 0 { d.name } else { "" },
                     if k == 0 { d.section } else { "" },
                     c.figure,
@@ -46,7 +46,7 @@ pub fn rows(d: &Done) -> Vec<String> {
 /// The whole table (terminal).
 pub fn table(done: &[Done]) -> String {
     let mut s = format!(
-        "{:14} {:11} {:46} {:>14} {:>16} {:>14} {:6} {:>8}\n",
+        "{:15} {:11} {:46} {:>14} {:>16} {:>14} {:6} {:>8}\n",
         "experiment", "section", "figure", "measured", "expected", "tolerance", "status", "wall"
     );
     for d in done {

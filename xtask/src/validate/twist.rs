@@ -13,8 +13,8 @@
 //! resolutions are compared on one region.
 //!
 //! Three experiments share this code ([`Grid`]): `twist` runs the fixture as committed (h =
-//! 0.25), `twist_fine` at h = 0.125 (the full tier only) and `twist_paper` at the paper's h =
-//! 0.0625 (only when named: hours a run).
+//! 0.25), `twist_fine` at h = 0.125 (the full tier only), and `twist_paper` (μ = 0.2) and
+//! `twist_paper_mu1` at the paper's h = 0.0625 (only when named: hours a run).
 
 use std::marker::PhantomData;
 
@@ -111,8 +111,8 @@ impl Grid for Fine {
     }
 }
 
-/// The paper's h = 0.0625 (32 768 particles at our 8 a cell) for μ = 0.2 and 1 (issue 40): the
-/// full tier, only when named (`--only twist_paper`).
+/// The paper's h = 0.0625 (32 768 particles at our 8 a cell) for μ = 0.2 (issue 40): the full
+/// tier, only when named (`--only twist_paper`; about 2.5–3 h).
 pub(super) struct Paper;
 
 impl Grid for Paper {
@@ -121,7 +121,22 @@ impl Grid for Paper {
     fn mus(tier: Tier) -> &'static [f64] {
         match tier {
             Tier::Quick => &[],
-            Tier::Full => &[0.2, 1.0],
+            Tier::Full => &[0.2],
+        }
+    }
+}
+
+/// The paper's h = 0.0625 for μ = 1, where the paper's cube does not slip: an experiment of its
+/// own (`--only twist_paper_mu1`; about 5.5–7 h), so that each can run in one sitting.
+pub(super) struct PaperMu1;
+
+impl Grid for PaperMu1 {
+    const H: Option<f64> = Some(0.0625);
+    const STEM: &'static str = "twist_paper_mu1";
+    fn mus(tier: Tier) -> &'static [f64] {
+        match tier {
+            Tier::Quick => &[],
+            Tier::Full => &[1.0],
         }
     }
 }
