@@ -176,7 +176,7 @@ const EXPERIMENTS: &[Experiment] = &[
         section: "BFEMP 6.7",
         title: "3D shell twisting an MPM cube at the paper's h = 0.0625: μ = 0.2",
         run: experiment::drive::<twist::Twist<twist::Paper>>,
-        // Not run yet: 2.5–3 h estimated (docs/performance.md, the twist at h = 0.0625).
+        // Not run yet: 3–4 h estimated (docs/performance.md, the twist at h = 0.0625).
         wall_s: (0.0, 10000.0),
         runs: Runs::FullWhenNamed,
     },
@@ -185,7 +185,7 @@ const EXPERIMENTS: &[Experiment] = &[
         section: "BFEMP 6.7",
         title: "3D shell twisting an MPM cube at the paper's h = 0.0625: μ = 1",
         run: experiment::drive::<twist::Twist<twist::PaperMu1>>,
-        // Not run yet: 5.5–7 h estimated.
+        // Not run yet: 6–8 h estimated.
         wall_s: (0.0, 23000.0),
         runs: Runs::FullWhenNamed,
     },

@@ -112,7 +112,7 @@ impl Grid for Fine {
 }
 
 /// The paper's h = 0.0625 (32 768 particles at our 8 a cell) for μ = 0.2 (issue 40): the full
-/// tier, only when named (`--only twist_paper`; about 2.5–3 h).
+/// tier, only when named (`--only twist_paper`; about 3–4 h).
 pub(super) struct Paper;
 
 impl Grid for Paper {
@@ -127,7 +127,7 @@ impl Grid for Paper {
 }
 
 /// The paper's h = 0.0625 for μ = 1, where the paper's cube does not slip: an experiment of its
-/// own (`--only twist_paper_mu1`; about 5.5–7 h), so that each can run in one sitting.
+/// own (`--only twist_paper_mu1`; about 6–8 h), so that each can run in one sitting.
 pub(super) struct PaperMu1;
 
 impl Grid for PaperMu1 {
