@@ -177,7 +177,7 @@ const EXPERIMENTS: &[Experiment] = &[
         title: "3D shell twisting an MPM cube at the paper's h = 0.0625: μ = 0.2",
         run: experiment::drive::<twist::Twist<twist::Paper>>,
         // Not run yet: 3–4 h estimated (docs/performance.md, the twist at h = 0.0625).
-        wall_s: (0.0, 10000.0),
+        wall_s: (0.0, 13000.0),
         runs: Runs::FullWhenNamed,
     },
     Experiment {
