@@ -476,20 +476,19 @@ impl Newton {
         // projected Hessian, and for an exact one, which CG rejects if it meets non-positive
         // curvature (then its factorisation decides).
         let last_factor = match problem.params.linear {
-            LinearSolver::LastFactorCg {
+            linear @ (LinearSolver::LastFactorCg {
                 rtol,
                 max_iterations,
-            } if reuse.is_none() && !cg && self.factor_ready && nf > 0 => {
-                Some((rtol, max_iterations))
             }
-            LinearSolver::Auto {
+            | LinearSolver::Auto {
                 rtol,
                 max_iterations,
-            } if reuse.is_none()
+            }) if reuse.is_none()
                 && !cg
                 && self.factor_ready
                 && nf > 0
-                && self.lin.chol.is_large() =>
+                && (matches!(linear, LinearSolver::LastFactorCg { .. })
+                    || self.lin.chol.is_large()) =>
             {
                 Some((rtol, max_iterations))
             }
