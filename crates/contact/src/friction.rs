@@ -382,13 +382,64 @@ pub fn derivatives<const D: usize>(
     dxb: &[SVector<f64, D>],
     out: &mut Vec<TermDerivatives<D>>,
 ) {
+    model_derivatives(params, terms, dxp, dxb, &[], out);
+}
+
+/// Which terms a step along a direction carries through their stick zone: sliding now
+/// (`|u| ≥ ε`) and past the zone's centre at the step's end (`u · (u + Δu) < 0`, with
+/// `Δu` the tangential displacement of the direction's increments `pxp`, `pxb`), into `out`
+/// (one flag per term); returns how many.
+///
+/// Along such a step the term's Taylor model — a constant force `μλ û` with no curvature
+/// along the slip — overshoots its kink, and a line search can only cut the whole step: a
+/// solve then creeps towards the stick zone over many short steps. Modelled as stuck
+/// ([`model_derivatives`]), the term's next direction lands in the zone instead.
+pub fn carried_through_stick<const D: usize>(
+    params: &FrictionParams,
+    terms: &[FrictionTerm<D>],
+    (dxp, dxb): (&[SVector<f64, D>], &[SVector<f64, D>]),
+    (pxp, pxb): (&[SVector<f64, D>], &[SVector<f64, D>]),
+    out: &mut Vec<bool>,
+) -> usize {
     let eps = params.eps();
     terms
         .par_iter()
         .with_min_len(256)
         .map(|t| {
             let u = t.tangential_displacement(dxp, dxb);
+            let du = t.tangential_displacement(pxp, pxb);
             let y = (u[0] * u[0] + u[1] * u[1]).sqrt();
+            y >= eps && u[0] * (u[0] + du[0]) + u[1] * (u[1] + du[1]) < 0.0
+        })
+        .collect_into_vec(out);
+    out.iter().filter(|&&s| s).count()
+}
+
+/// [`derivatives`], with the terms flagged in `stuck` (empty: none) modelled as sticking: the
+/// quadratic `μλ |u|²/ε` of the stick zone's centre (the curvature `f₁/y = f₁' = 2/ε` of
+/// `y → 0` in every tangential direction, and its gradient `μλ (2/ε) T u`) instead of the
+/// Taylor expansion at `u`. The model's Hessian block is at least the true one
+/// (`f₁/y, f₁' ≤ 2/ε`), so a matrix that is positive definite stays so.
+pub fn model_derivatives<const D: usize>(
+    params: &FrictionParams,
+    terms: &[FrictionTerm<D>],
+    dxp: &[SVector<f64, D>],
+    dxb: &[SVector<f64, D>],
+    stuck: &[bool],
+    out: &mut Vec<TermDerivatives<D>>,
+) {
+    let eps = params.eps();
+    terms
+        .par_iter()
+        .enumerate()
+        .with_min_len(256)
+        .map(|(k, t)| {
+            let u = t.tangential_displacement(dxp, dxb);
+            let y = if stuck.get(k).copied().unwrap_or(false) {
+                0.0
+            } else {
+                (u[0] * u[0] + u[1] * u[1]).sqrt()
+            };
             let s = params.mu * t.lambda;
             let c = [1.0, -t.beta[0], -t.beta[1], -t.beta[2]];
             // Force direction in space: T u, scaled.

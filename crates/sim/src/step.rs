@@ -235,6 +235,7 @@ impl Bfemp {
         // Start the fixed DOFs where they are; Newton moves them to their targets.
         let mut obj = s.objective(w.bodies, dt, weight);
         obj.point_test = point_test;
+        obj.stick_model = w.scene.spec().solver.friction_stick_model;
         let _ = start_at_predictor(&mut obj, &s.x0, &s.fixed, &s.target, &s.x_hat, &mut x);
         report.setup_s = clock_setup + clock.elapsed().as_secs_f64();
         self.minimize(
@@ -1258,7 +1259,7 @@ impl AitkenRelaxation {
 /// Start `x` at the predictor `x_hat` (targets for prescribed DOFs) when the straight path
 /// from `x0` to it is feasible (no crossing, no inversion) and its energy finite (`true`); at
 /// `x0` otherwise (`false`).
-fn start_at_predictor<const D: usize>(
+pub(crate) fn start_at_predictor<const D: usize>(
     obj: &mut StepObjective<'_, D>,
     x0: &[f64],
     fixed: &[bool],

@@ -564,6 +564,119 @@ fn friction_derivatives_and_direction() {
     assert!(force.normalize().dot(&slide.normalize()) < -0.999999);
 }
 
+/// The stick model (`carried_through_stick`, `model_derivatives`): a sliding term whose step
+/// runs past the stick zone's centre is flagged, one that keeps sliding, turns by less than a
+/// right angle, or already sticks is not; a flagged term's model derivatives are those of the
+/// stick zone's quadratic `μλ|u|²/ε` (finite differences of that energy), its Hessian is the
+/// true one plus a PSD part, and unflagged terms keep their true derivatives bit for bit.
+#[test]
+fn friction_stick_model_flags_steps_through_the_stick_zone_and_models_them_stuck() {
+    let (v, f) = cube();
+    let pot = ContactPotential::new(
+        LogBarrier::new(0.1, 1e2).unwrap(),
+        BoundaryTopology::<3>::new(&f, 8).unwrap(),
+    );
+    // Two particles above the top face (z = 1): its tangent plane is x–y.
+    let particles = vec![Vector3::new(0.3, 0.6, 1.03), Vector3::new(0.7, 0.4, 1.05)];
+    let mut c = Candidates::default();
+    broad_phase::candidates_within(&particles, &v, pot.topology.facets(), 0.1, &mut c);
+    let mut terms = Vec::new();
+    pot.collect_terms(&particles, &[0.3, 0.5], &v, &c, &mut terms)
+        .unwrap();
+    let lagged = friction::lag(&pot, &terms, &particles, &v);
+    assert_eq!(lagged.len(), 2);
+    let params = FrictionParams::new(0.4, 1e-3, 1e-2).unwrap(); // ε = 1e-5 m
+    let eps = params.eps();
+    let nb = v.len();
+    let still = vec![Vector3::zeros(); nb];
+    let slid = Vector3::new(3e-3, -1e-3, 0.0);
+    let flags = |u: [Vector3<f64>; 2], du: [Vector3<f64>; 2]| {
+        let mut out = Vec::new();
+        let n = friction::carried_through_stick(
+            &params,
+            &lagged,
+            (&u, &still),
+            (&du, &still),
+            &mut out,
+        );
+        assert_eq!(n, out.iter().filter(|&&s| s).count());
+        out
+    };
+    let t0 = lagged.iter().position(|t| t.particle == 0).unwrap();
+    let t1 = 1 - t0;
+    // Particle 0 pulled back past the centre (by 1.5 × its slip); particle 1 sliding on.
+    let out = flags([slid, slid], [slid * -1.5, slid * 0.5]);
+    assert!(out[t0] && !out[t1], "{out:?}");
+    // Pulled back only to half its slip (no crossing), or turned by 60° (no crossing).
+    let turn = Vector3::new(
+        slid.x * 0.5 - slid.y * 0.866,
+        slid.x * 0.866 + slid.y * 0.5,
+        0.0,
+    );
+    let out = flags([slid, slid], [slid * -0.5, turn - slid]);
+    assert!(!out[t0] && !out[t1], "{out:?}");
+    // Sticking (|u| < ε): its own quadratic model already; pushed through, not flagged.
+    let small = Vector3::new(0.3 * eps, 0.2 * eps, 0.0);
+    let out = flags([small, small], [small * -3.0, small * -3.0]);
+    assert!(!out[t0] && !out[t1], "{out:?}");
+    // A pure normal motion (no tangential displacement): not flagged.
+    let out = flags(
+        [Vector3::new(0.0, 0.0, 1e-3); 2],
+        [Vector3::new(0.0, 0.0, -3e-3); 2],
+    );
+    assert!(!out[t0] && !out[t1], "{out:?}");
+
+    // Model derivatives with particle 0 flagged, on both regimes' displacements.
+    let stuck: Vec<bool> = (0..2).map(|k| k == t0).collect();
+    let np = particles.len();
+    for scale in [1.0, 1e-3] {
+        let dxp = vec![slid * scale, slid * (-0.7 * scale)];
+        let dxb: Vec<Vector3<f64>> = (0..nb)
+            .map(|i| Vector3::new(0.2 * i as f64, 0.1, -0.3) * 1e-4 * scale)
+            .collect();
+        let mut model = Vec::new();
+        friction::model_derivatives(&params, &lagged, &dxp, &dxb, &stuck, &mut model);
+        let mut truth = Vec::new();
+        friction::derivatives(&params, &lagged, &dxp, &dxb, &mut truth);
+        // The unflagged term: the true derivatives exactly.
+        assert_eq!(model[t1].grad, truth[t1].grad);
+        assert_eq!(model[t1].hess, truth[t1].hess);
+        // The flagged term: the derivatives of μλ|u|²/ε, u its tangential displacement.
+        let t = &lagged[t0];
+        let quad = |x: &DVector<f64>| {
+            let all: Vec<Vector3<f64>> = x
+                .as_slice()
+                .chunks(3)
+                .map(Vector3::from_column_slice)
+                .collect();
+            let u = t.tangential_displacement(&all[..np], &all[np..]);
+            params.mu * t.lambda * (u[0] * u[0] + u[1] * u[1]) / eps
+        };
+        let x0 = pack(&dxp, &dxb);
+        let (g, h) = accumulate(std::slice::from_ref(&model[t0]), np, nb);
+        let gfd = femp_testkit::fd_gradient(quad, &x0, 1e-6 * scale);
+        assert!(
+            (&g - &gfd).amax() <= 1e-6 * g.amax(),
+            "model gradient (scale {scale}): {} against {}",
+            g.amax(),
+            gfd.amax()
+        );
+        let hq = femp_testkit::fd_jacobian(
+            |x: &DVector<f64>| femp_testkit::fd_gradient(quad, x, 1e-6 * scale),
+            &x0,
+            1e-6 * scale,
+        );
+        assert!(
+            (&h - &hq).amax() <= 1e-4 * h.amax(),
+            "model Hessian (scale {scale})"
+        );
+        // Model ⪰ truth: the difference of the flagged term's blocks is PSD.
+        let (_, ht) = accumulate(std::slice::from_ref(&truth[t0]), np, nb);
+        let diff = &h - &ht;
+        assert!(diff.symmetric_eigen().eigenvalues.min() >= -1e-9 * h.amax());
+    }
+}
+
 #[test]
 fn friction_2d_sticking_force_is_linear() {
     let (v, f) = square();

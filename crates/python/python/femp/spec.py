@@ -110,6 +110,7 @@ class Solver(_Spec):
     friction_extrapolation: Optional[bool] = None
     friction_relaxation: Optional[bool] = None
     friction_aitken: Optional[bool] = None
+    friction_stick_model: Optional[bool] = None
     newton_test: Optional[str] = None
     retry_other_projection: Optional[bool] = None
     ordering: Optional[str] = None

@@ -54,6 +54,10 @@ pub struct Summary {
     pub newton_iterations: usize,
     /// Friction iterations in total (BFEMP).
     pub friction_iterations: usize,
+    /// Newton iterations whose direction was solved again with friction terms modelled as
+    /// stuck (`solver.friction_stick_model`; femp-solver `SolveStats::model_directions`),
+    /// each at the cost of a second assembly and factorisation.
+    pub stick_model_directions: usize,
     /// Iterations of the augury contact steps in total (augury).
     pub augury_iterations: usize,
     /// Newton iterations that used the exact Hessian (`solver.projection: "when_indefinite"`).

@@ -41,6 +41,10 @@ pub(super) struct Contact<'a, const D: usize> {
     hess_terms: Option<u64>,
     /// Buffers of the CCD bound.
     ccd: CcdScratch<D>,
+    /// Per pair, the friction terms a Newton direction carries through their stick zone
+    /// ([`Contact::begin_stick_model`]); modelled as stuck while `model` is on.
+    stuck: Vec<Vec<bool>>,
+    model: bool,
 }
 
 /// Buffers of [`Contact::ccd_bound`], kept across Newton iterations: per pair the moving
@@ -80,6 +84,8 @@ impl<'a, const D: usize> Contact<'a, D> {
             grad_terms: 0,
             hess_terms: None,
             ccd: CcdScratch::default(),
+            stuck: vec![Vec::new(); pairs.len()],
+            model: false,
         }
     }
 
@@ -218,7 +224,15 @@ impl<'a, const D: usize> Contact<'a, D> {
             if !self.friction[k].is_empty() {
                 self.fill_displacements(cfg, k);
                 let (dp, db) = &self.disp;
-                friction::derivatives(&self.friction_params[k], &self.friction[k], dp, db, fric);
+                let stuck: &[bool] = if self.model { &self.stuck[k] } else { &[] };
+                friction::model_derivatives(
+                    &self.friction_params[k],
+                    &self.friction[k],
+                    dp,
+                    db,
+                    stuck,
+                    fric,
+                );
                 self.scatter(k, fric, dofs, w, Some(g), None);
             }
         }
@@ -482,6 +496,54 @@ impl<'a, const D: usize> Contact<'a, D> {
         (n, dmin)
     }
 
+    /// Model the friction terms that the direction `p` (particles moving by `dq`) carries
+    /// through their stick zone as stuck, until [`Contact::end_stick_model`]
+    /// ([`friction::carried_through_stick`]); returns how many.
+    pub fn begin_stick_model(
+        &mut self,
+        cfg: &Configuration<D>,
+        dofs: &Dofs,
+        p: &[f64],
+        dq: &[SVector<f64, D>],
+    ) -> usize {
+        let mut count = 0;
+        for k in 0..self.pairs.len() {
+            if self.friction[k].is_empty() {
+                self.stuck[k].clear();
+                continue;
+            }
+            self.fill_displacements(cfg, k);
+            let pair = &self.pairs[k];
+            let sc = &mut self.ccd;
+            let dx = direction_motion((&mut sc.dx, &mut sc.bdx), self.fem, pair, dofs, p, dq);
+            count += friction::carried_through_stick(
+                &self.friction_params[k],
+                &self.friction[k],
+                (&self.disp.0, &self.disp.1),
+                (dx, &sc.bdx),
+                &mut self.stuck[k],
+            );
+        }
+        if count > 0 {
+            self.model = true;
+            self.invalidate_derivatives();
+        }
+        count
+    }
+
+    /// Back to the true friction terms after [`Contact::begin_stick_model`].
+    pub fn end_stick_model(&mut self) {
+        if std::mem::take(&mut self.model) {
+            self.invalidate_derivatives();
+        }
+    }
+
+    /// Forget the cached term derivatives and the last Hessian's terms (the model changed).
+    fn invalidate_derivatives(&mut self) {
+        self.derivatives.computed_at = None;
+        self.hess_terms = None;
+    }
+
     /// The largest step fraction (≤ 1) along `p` before a point of any pair meets a facet
     /// (CCD), the particles moving by `dq`.
     pub fn ccd_bound(
@@ -496,26 +558,9 @@ impl<'a, const D: usize> Contact<'a, D> {
         // CCD of every pair along the full step.
         for pair in self.pairs {
             let x0 = points_of(&cfg.xq, self.fem, &cfg.fem_x, pair);
-            let dx: &[SVector<f64, D>] = match &pair.points {
-                Points::Mpm { range } => &dq[range.0..range.1],
-                Points::Fem { body } => {
-                    let off = dofs.fem_offset[*body];
-                    sc.dx.clear();
-                    sc.dx.extend(
-                        self.fem[*body]
-                            .boundary
-                            .vertices()
-                            .iter()
-                            .map(|&v| block(&p[off..], v)),
-                    );
-                    &sc.dx
-                }
-            };
+            let dx = direction_motion((&mut sc.dx, &mut sc.bdx), self.fem, pair, dofs, p, dq);
             let fb = pair.facets_of;
-            let off = dofs.fem_offset[fb];
             let bx = &cfg.fem_x[fb];
-            sc.bdx.clear();
-            sc.bdx.extend((0..bx.len()).map(|v| block(&p[off..], v)));
             sc.x1.clear();
             sc.x1.extend(x0.iter().zip(dx).map(|(a, b)| a + b));
             sc.b1.clear();
@@ -541,6 +586,38 @@ impl<'a, const D: usize> Contact<'a, D> {
             best = best.min(alpha);
         }
         best
+    }
+}
+
+/// A pair's motion along the direction `p`: its points' increments (the particles' `dq`, or
+/// its FEM boundary vertices' blocks of `p`, gathered into `dx`) and its facet body's vertex
+/// increments (into `bdx`).
+fn direction_motion<'s, const D: usize>(
+    (dx, bdx): (&'s mut Vec<SVector<f64, D>>, &mut Vec<SVector<f64, D>>),
+    fem: &[FemBody<D>],
+    pair: &Pair<D>,
+    dofs: &Dofs,
+    p: &[f64],
+    dq: &'s [SVector<f64, D>],
+) -> &'s [SVector<f64, D>] {
+    let fb = pair.facets_of;
+    let off = dofs.fem_offset[fb];
+    bdx.clear();
+    bdx.extend((0..fem[fb].x.len()).map(|v| block(&p[off..], v)));
+    match &pair.points {
+        Points::Mpm { range } => &dq[range.0..range.1],
+        Points::Fem { body } => {
+            let off = dofs.fem_offset[*body];
+            dx.clear();
+            dx.extend(
+                fem[*body]
+                    .boundary
+                    .vertices()
+                    .iter()
+                    .map(|&v| block(&p[off..], v)),
+            );
+            dx
+        }
     }
 }
 

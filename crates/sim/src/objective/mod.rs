@@ -104,6 +104,9 @@ pub struct StepObjective<'a, const D: usize> {
     /// ([`ParticleElasticity::increment_size`]) instead of on the unknowns
     /// (`solver.newton_test`).
     pub(crate) point_test: bool,
+    /// Newton directions that carry friction terms through their stick zone are solved again
+    /// with those terms modelled as stuck ([`Objective::begin_model`]).
+    pub(crate) stick_model: bool,
     /// Where the time went.
     pub(crate) timing: ObjectiveTiming,
     /// Number of active contact terms and smallest contact distance at the last gradient.
@@ -161,6 +164,7 @@ impl<'a, const D: usize> StepObjective<'a, D> {
             motion: (Vec::new(), Vec::new()),
             prefer_exact: false,
             point_test: false,
+            stick_model: false,
             timing: ObjectiveTiming::default(),
             last_contacts: (0, f64::INFINITY),
             elastic: true,
@@ -388,6 +392,23 @@ impl<const D: usize> Objective for StepObjective<'_, D> {
         }
         self.lag_friction(x);
         true
+    }
+
+    fn begin_model(&mut self, x: &[f64], p: &[f64]) -> bool {
+        if !self.stick_model {
+            return false;
+        }
+        self.unpack(x);
+        let clock = Instant::now();
+        let (pg, dq) = &mut self.motion;
+        let stuck = self.particles.motion(p, &self.dofs, pg, dq)
+            && self.contact.begin_stick_model(&self.cfg, &self.dofs, p, dq) > 0;
+        self.timing.contact_s += clock.elapsed().as_secs_f64();
+        stuck
+    }
+
+    fn end_model(&mut self) {
+        self.contact.end_stick_model();
     }
 
     fn max_step(&mut self, x: &[f64], p: &[f64]) -> StepBound {

@@ -536,14 +536,15 @@ fn contact_only_objective_is_inertia_and_barrier_3d() {
 /// extrapolation (`solver.friction_extrapolation`, which must then have been used), and with
 /// the operator lagged half way from the second solve on (`solver.friction_relaxation`, its
 /// trigger forced: these loops contract), and with Aitken's dynamic relaxation
-/// (`solver.friction_aitken`). Stopping one friction iteration early, ending on an inexact
-/// solve or on an extrapolated or relaxed operator, or measuring the fixed point on grid nodes
-/// a particle barely touches, fails it.
+/// (`solver.friction_aitken`), and with Newton directions through a stick zone solved with the
+/// stick model (`solver.friction_stick_model`, which must then have been used). Stopping one
+/// friction iteration early, ending on an inexact solve or on an extrapolated or relaxed
+/// operator, or measuring the fixed point on grid nodes a particle barely touches, fails it.
 fn check_friction_fixed_point<const D: usize>(
     json: &str,
     below: f64,
     forcing: f64,
-    (extrapolate, relax, aitken): (bool, bool, bool),
+    (extrapolate, relax, aitken, stick): (bool, bool, bool, bool),
 ) {
     use crate::step::{FrictionPolicy, friction_loop};
     use femp_solver::{Newton, NewtonParams};
@@ -556,8 +557,14 @@ fn check_friction_fixed_point<const D: usize>(
         ..Default::default()
     };
     let mut obj = objective_of(&setup, &w);
+    obj.stick_model = stick;
     let mut newton = Newton::new();
     let mut x = setup.x0.clone();
+    if stick {
+        // From the predictor, as the step starts: sliding on where the contact may stop it.
+        let (s, x0) = (&setup, &setup.x0);
+        crate::step::start_at_predictor(&mut obj, x0, &s.fixed, &s.target, &s.x_hat, &mut x);
+    }
     let mut report = crate::report::StepReport::default();
     let problem = (&setup.fixed[..], &setup.target[..]);
     friction_loop(
@@ -580,6 +587,14 @@ fn check_friction_fixed_point<const D: usize>(
     )
     .unwrap();
     assert!(report.friction_converged, "{D}D: {report:?}");
+    // (The 3D block of SCENE_3D slides throughout: no direction passes a stick zone.)
+    let sliding = D == 3 && json == SCENE_3D;
+    assert_eq!(
+        report.stats.model_directions_taken > 0,
+        stick && !sliding,
+        "{D}D: {} stick-model directions",
+        report.stats.model_directions_taken
+    );
     assert_eq!(
         report.extrapolated_lags > 0,
         extrapolate,
@@ -621,21 +636,30 @@ fn check_friction_fixed_point<const D: usize>(
 
 #[test]
 fn friction_loop_ends_at_its_fixed_point() {
-    for (below, forcing, extrapolate, relax, aitken) in [
-        (0.0, 0.0, false, false, false),
-        (1e-2, 0.0, false, false, false),
-        (0.0, 0.1, false, false, false),
-        (0.0, 0.5, false, false, false),
-        (0.0, 0.0, true, false, false),
-        (0.0, 0.5, true, false, false),
-        (0.0, 0.0, false, true, false),
-        (0.0, 0.5, false, true, false),
-        (0.0, 0.0, false, false, true),
-        (0.0, 0.5, false, false, true),
+    for (below, forcing, extrapolate, relax, aitken, stick) in [
+        (0.0, 0.0, false, false, false, false),
+        (1e-2, 0.0, false, false, false, false),
+        (0.0, 0.1, false, false, false, false),
+        (0.0, 0.5, false, false, false, false),
+        (0.0, 0.0, true, false, false, false),
+        (0.0, 0.5, true, false, false, false),
+        (0.0, 0.0, false, true, false, false),
+        (0.0, 0.5, false, true, false, false),
+        (0.0, 0.0, false, false, true, false),
+        (0.0, 0.5, false, false, true, false),
+        (0.0, 0.0, false, false, false, true),
+        (0.0, 0.0, false, false, true, true),
     ] {
-        let how = (extrapolate, relax, aitken);
+        let how = (extrapolate, relax, aitken, stick);
         check_friction_fixed_point::<2>(SCENE_2D, below, forcing, how);
         check_friction_fixed_point::<3>(SCENE_3D, below, forcing, how);
+        if stick {
+            // The 3D block slowed to a stop within the step (friction's μ g Δt is 0.04 m/s):
+            // its particles stick, and the solve that starts at the predictor carries them
+            // through their stick zones.
+            let stopping = SCENE_3D.replace("[0.5, 0, -0.2]", "[0.02, 0, -0.2]");
+            check_friction_fixed_point::<3>(&stopping, below, forcing, how);
+        }
     }
 }
 

@@ -263,6 +263,12 @@ pub struct SolverSpec {
     /// ([`SolverSpec::aitken`]).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub friction_aitken: Option<bool>,
+    /// A Newton direction that carries friction terms through their stick zone (sliding now,
+    /// past the zone's centre at the step's end) is solved again with those terms modelled
+    /// as stuck — the stick zone's quadratic instead of the Taylor expansion at their slip —
+    /// and taken if it descends the energy: the solve lands in the stick zone instead of
+    /// creeping to its kink over cut steps. Each solve's minimiser is the same.
+    pub friction_stick_model: bool,
     /// What Newton's convergence test measures the increment on.
     pub newton_test: NewtonTestSpec,
     /// When a step's Newton solve fails (iteration limit, stalled line search), solve the step
@@ -377,6 +383,7 @@ impl Default for SolverSpec {
             friction_extrapolation: false,
             friction_relaxation: false,
             friction_aitken: None,
+            friction_stick_model: true,
             newton_test: NewtonTestSpec::Points,
             retry_other_projection: true,
             max_substeps: 1024,

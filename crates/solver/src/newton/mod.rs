@@ -79,6 +79,9 @@ pub struct Newton {
     /// A factorisation of this solve's matrix size is held ([`LinearSolver::LastFactorCg`]
     /// and [`LinearSolver::Auto`] may precondition with it).
     factor_ready: bool,
+    /// The true gradient and the first direction's free part, kept while a piecewise model's
+    /// direction is solved ([`Objective::begin_model`]).
+    model_keep: (Vec<f64>, Vec<f64>),
 }
 
 /// The Hessian's sparse matrix and its factorisation: what a Newton iteration can hand to
@@ -132,6 +135,7 @@ impl Newton {
             interrupt: None,
             record: false,
             factor_ready: false,
+            model_keep: (Vec::new(), Vec::new()),
         }
     }
 
@@ -292,12 +296,18 @@ impl Newton {
         state.stats.iterations += 1;
         let cg = state.cg.active(params.linear);
         let reused_before = state.stats.reused_hessians;
-        let matrix = self.matrix_and_gradient(state, obj, x, problem, cg.is_some())?;
-        let solved = match cg {
+        let matrix = self.matrix_and_gradient(state, obj, x, problem, cg.is_some(), false)?;
+        let mut solved = match cg {
             Some(cg) => self.solve_with_cg(state, obj, x, problem, matrix, cg)?,
             None => self.solve_with_cholesky(state, obj, x, problem, matrix)?,
         };
-        let Direction { pmax, gp } = self.direction(problem.fixed)?;
+        let mut direction = self.direction(problem.fixed)?;
+        // (Whether or not its direction is taken, the matrix held is then the model's.)
+        let modelled = obj.begin_model(x, &self.p);
+        if modelled && let Some(model) = self.model_direction(state, obj, x, problem)? {
+            (solved, direction) = model;
+        }
+        let Direction { pmax, gp } = direction;
         state.stats.final_residual = obj.increment_size(x, &self.p).unwrap_or(pmax) / params.dt;
         let at_targets = problem.at_targets(x);
         let converged =
@@ -337,8 +347,9 @@ impl Newton {
             state.stats.ended_at_roundoff = true;
             return Ok(Progress::Done);
         }
+        // (A model's matrix is not the Hessian the next iteration would reuse.)
         state.reuse.after_line_search(
-            search.accepted.is_some() && search.alpha == 1.0,
+            search.accepted.is_some() && search.alpha == 1.0 && !modelled,
             solved.exact,
         );
         match search.accepted {
@@ -383,6 +394,43 @@ impl Newton {
         } else {
             Progress::Continue
         })
+    }
+
+    /// The direction solved again with the objective's piecewise model
+    /// ([`Objective::begin_model`], already begun; ended here): a fresh matrix (no reuse, no
+    /// CG preconditioned with a factor of the true Hessian, which the model's stiff blocks
+    /// would defeat) and the model's gradient. `Some` with the model's direction if it descends
+    /// the true energy (`gᵀp < 0` with the true gradient, which `g` holds again on return);
+    /// `None`, the first direction restored, if not.
+    fn model_direction(
+        &mut self,
+        state: &mut SolveState,
+        obj: &mut impl Objective,
+        x: &[f64],
+        problem: &Problem,
+    ) -> Result<Option<(Solved, Direction)>, Failure> {
+        state.stats.model_directions += 1;
+        // The true gradient and the first direction, kept for after the model.
+        let (g_true, first_rhs) = (&mut self.model_keep.0, &mut self.model_keep.1);
+        g_true.clone_from(&self.g);
+        first_rhs.clone_from(&self.rhs);
+        let cg = state.cg.active(problem.params.linear);
+        let solved = self
+            .matrix_and_gradient(state, obj, x, problem, cg.is_some(), true)
+            .and_then(|matrix| match cg {
+                Some(cg) => self.solve_with_cg(state, obj, x, problem, matrix, cg),
+                None => self.solve_with_cholesky(state, obj, x, problem, matrix),
+            });
+        obj.end_model();
+        std::mem::swap(&mut self.g, &mut self.model_keep.0);
+        let solved = solved?;
+        let direction = self.direction(problem.fixed)?;
+        if direction.gp < 0.0 {
+            state.stats.model_directions_taken += 1;
+            return Ok(Some((solved, direction)));
+        }
+        self.rhs.clone_from(&self.model_keep.1);
+        self.direction(problem.fixed).map(|_| None)
     }
 
     /// With [`Newton::record_iterations`], the iteration's [`IterationRecord`] (`search`:
@@ -434,9 +482,12 @@ impl Newton {
         x: &[f64],
         problem: &Problem,
         cg: bool,
+        fresh: bool,
     ) -> Result<Matrix, Failure> {
         let t = Instant::now();
-        obj.begin_iteration(x);
+        if !fresh {
+            obj.begin_iteration(x);
+        }
         let nf = self.free_dofs.len();
         // Reuse the last matrix? The gradient comes first, then the objective says whether
         // the Hessian's terms are still those of that matrix.
@@ -445,6 +496,7 @@ impl Newton {
         if let Some(held_exact) = state
             .reuse
             .candidate(state.stats.final_residual, problem, x)
+            .filter(|_| !fresh)
         {
             // (Timed with the Hessian below: both are assembly.)
             self.g.fill(0.0);
@@ -485,6 +537,7 @@ impl Newton {
                 max_iterations,
             }) if reuse.is_none()
                 && !cg
+                && !fresh
                 && self.factor_ready
                 && nf > 0
                 && (matches!(linear, LinearSolver::LastFactorCg { .. })

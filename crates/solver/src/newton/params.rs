@@ -82,6 +82,20 @@ pub trait Objective {
     fn hessian_terms_unchanged(&mut self) -> bool {
         false
     }
+    /// A piecewise model for the iteration's direction. Called after the direction `p` at `x`
+    /// is solved: an objective whose energy has kinks (a friction term's stick zone, say) may
+    /// replace the Taylor model of the terms `p` would carry across their kink by the model of
+    /// the piece the step is headed for, and return `true` if it did. Until
+    /// [`Objective::end_model`], `gradient`, `hessian` and `exact_hessian` then give the
+    /// model's (positive definite where the true Hessian is); the solver solves for a new
+    /// direction with them and takes it if it descends the true energy. The line search, the
+    /// convergence test and the next iteration use the true energy and gradient. Default:
+    /// nothing, `false`.
+    fn begin_model(&mut self, _x: &[f64], _p: &[f64]) -> bool {
+        false
+    }
+    /// Back to the true derivatives after [`Objective::begin_model`] returned `true`.
+    fn end_model(&mut self) {}
     /// The largest feasible step along `p` (CCD, inversion); default: unlimited.
     fn max_step(&mut self, _x: &[f64], _p: &[f64]) -> StepBound {
         StepBound::UNLIMITED

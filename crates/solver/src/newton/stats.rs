@@ -44,6 +44,11 @@ pub struct SolveStats {
     /// Iterations that began by updating the objective's lagged terms
     /// ([`crate::Objective::update_lagged`]).
     pub lagged_updates: usize,
+    /// Iterations whose direction was solved again with the objective's piecewise model
+    /// ([`crate::Objective::begin_model`]).
+    pub model_directions: usize,
+    /// Of those, the iterations that took the model's direction (it descends the true energy).
+    pub model_directions_taken: usize,
     /// Symbolic analyses (sparsity pattern changes).
     pub symbolic_analyses: usize,
     /// Conjugate-gradient iterations (matrix products), with [`LinearSolver::Pcg`] or
@@ -126,6 +131,8 @@ impl std::ops::AddAssign<&SolveStats> for SolveStats {
         self.reused_hessians += s.reused_hessians;
         self.exact_rejections += s.exact_rejections;
         self.lagged_updates += s.lagged_updates;
+        self.model_directions += s.model_directions;
+        self.model_directions_taken += s.model_directions_taken;
         self.symbolic_analyses += s.symbolic_analyses;
         self.pcg_iterations += s.pcg_iterations;
         self.pcg_fallbacks += s.pcg_fallbacks;
