@@ -13,12 +13,13 @@
 //! cargo xtask bench --newton-test nodes points         # Newton's test on grid nodes / particles
 //! cargo xtask bench --set solver.reuse_hessian_below=0,0.1,1   # any scene field, each value
 //! cargo xtask bench --only twist --steps 1 --trace twist.csv   # every Newton iteration
+//! cargo xtask bench --only twist --warm 85 --steps 1 --set contact.friction=0.2  # step 86
 //! ```
 //!
 //! `--trace FILE` writes one CSV row per Newton iteration of the measured steps (every case and
 //! variant): its solve within the step, the convergence test's increment, the unknown with the
 //! largest increment (grid node or FEM vertex, its mass), whether the Hessian was the exact
-//! one, `gᵀp`, the feasible-step bound and what set it, the step length, the line search's
+//! one, whether the direction was the stick model's (`solver.friction_stick_model`), `gᵀp`, the feasible-step bound and what set it, the step length, the line search's
 //! halvings and the energy change — where a step's iterations go, in a file to plot.
 //!
 //! `--set KEY=V1,V2,…` (repeatable) sets a field of the scene file by its dotted path (array
@@ -28,7 +29,8 @@
 //!
 //! `block_on_plate_3d` runs its first `--steps` steps (default 2: the first lands the block, the
 //! second is in contact); the twist runs to the window's start (t = 1.0 s, where the turn begins)
-//! unmeasured, then `--steps` steps (default 5) measured. Steps run on every core unless
+//! unmeasured, then `--steps` steps (default 5) measured. `--warm N` runs N unmeasured steps
+//! first instead (default 0 for the plate, 100 for the twist). Steps run on every core unless
 //! `RAYON_NUM_THREADS` says otherwise.
 
 use std::path::Path;
@@ -62,20 +64,21 @@ const CASES: [Case; 2] = [
     },
 ];
 
-const USAGE: &str = "usage: cargo xtask bench [--only plate|twist …] [--steps N] \
+const USAGE: &str = "usage: cargo xtask bench [--only plate|twist …] [--warm N] [--steps N] \
                      [--ordering auto|amd|nested_dissection …] [--friction-update-below V …] \
                      [--newton-test nodes|points …] [--set KEY=V1,V2,… …] [--trace FILE]";
 
 /// The header of `--trace`'s CSV.
 const TRACE_HEADER: &str = "case,ordering,set,step,solve,iteration,increment,largest_on,\
-                            index,body,axis,mass,largest_increment,exact,reused,gtp,bound,\
-                            bound_by,alpha,backtracks,energy_change";
+                            index,body,axis,mass,largest_increment,exact,reused,model,gtp,\
+                            bound,bound_by,alpha,backtracks,energy_change";
 
 /// Entry point (arguments after `bench`).
 pub fn main(args: &[String]) -> Result<()> {
     let mut only: Vec<String> = Vec::new();
     let mut orderings: Vec<OrderingSpec> = Vec::new();
     let mut steps: Option<usize> = None;
+    let mut warm: Option<usize> = None;
     let mut below: Vec<f64> = Vec::new();
     let mut tests: Vec<NewtonTestSpec> = Vec::new();
     let mut sets: Vec<(String, Vec<serde_json::Value>)> = Vec::new();
@@ -88,6 +91,7 @@ pub fn main(args: &[String]) -> Result<()> {
                     only.push(n.clone());
                 }
             }
+            "--warm" => warm = Some(it.next().and_then(|n| n.parse().ok()).context(USAGE)?),
             "--steps" => {
                 steps = Some(
                     it.next()
@@ -147,10 +151,10 @@ pub fn main(args: &[String]) -> Result<()> {
     }
     let root = super::validate::workspace_root();
     println!(
-        "| case | ordering | friction update below | Newton test | set | step | t (s) | Newton it. | friction it. | friction converged | contact terms | reused Hessians | wall (s) | assembly | symbolic | numeric | solve | CG | line search | refine it. | double factors |"
+        "| case | ordering | friction update below | Newton test | set | step | t (s) | Newton it. | friction it. | friction converged | contact terms | reused Hessians | wall (s) | assembly | symbolic | numeric | solve | CG | line search | refine it. | double factors | stick-model directions |"
     );
     println!(
-        "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"
+        "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"
     );
     let combinations = combinations(&sets);
     let mut trace = trace_file.as_ref().map(|_| vec![TRACE_HEADER.to_string()]);
@@ -166,7 +170,7 @@ pub fn main(args: &[String]) -> Result<()> {
                             &root,
                             case,
                             (ordering, b, t, set),
-                            steps.unwrap_or(case.steps),
+                            (warm.unwrap_or(case.warm), steps.unwrap_or(case.steps)),
                             trace.as_mut(),
                         )?;
                     }
@@ -218,12 +222,13 @@ fn trace_rows(
             Some(femp::StepLimit::Other) => "other",
         };
         rows.push(format!(
-            "{case},{ordering:?},\"{set}\",{step},{solve},{},{:e},{kind},{index},{body},{axis},{mass:e},{:e},{},{},{:e},{:e},{limit},{:e},{},{:e}",
+            "{case},{ordering:?},\"{set}\",{step},{solve},{},{:e},{kind},{index},{body},{axis},{mass:e},{:e},{},{},{},{:e},{:e},{limit},{:e},{},{:e}",
             rec.iteration,
             rec.increment,
             rec.largest.1,
             rec.exact,
             rec.reused,
+            rec.modelled,
             rec.predicted,
             rec.bound.0,
             rec.alpha,
@@ -287,7 +292,7 @@ fn run_case(
     root: &Path,
     case: &Case,
     (ordering, below, test, set): (OrderingSpec, Option<f64>, Option<NewtonTestSpec>, &Settings),
-    steps: usize,
+    (warm, steps): (usize, usize),
     mut trace: Option<&mut Vec<String>>,
 ) -> Result<()> {
     let dir = root.join("fixtures/scenes");
@@ -305,7 +310,7 @@ fn run_case(
     let below = s.spec().solver.friction_update_below;
     let test = s.spec().solver.newton_test;
     let mut world = World::<3>::build(s)?;
-    for _ in 0..case.warm {
+    for _ in 0..warm {
         world.step()?;
     }
     world.record_newton_iterations(trace.is_some());
@@ -321,7 +326,7 @@ fn run_case(
         }
         let st = &r.stats;
         println!(
-            "| {} | {:?} | {below} | {test:?} | {set} | {} | {:.3} | {} | {} | {} | {} | {} | {w:.2} | {:.2} | {:.2} | {:.2} | {:.2} | {:.2} | {:.2} | {} | {} |",
+            "| {} | {:?} | {below} | {test:?} | {set} | {} | {:.3} | {} | {} | {} | {} | {} | {w:.2} | {:.2} | {:.2} | {:.2} | {:.2} | {:.2} | {:.2} | {} | {} | {} |",
             case.name,
             ordering,
             world.clock.step,
@@ -338,11 +343,12 @@ fn run_case(
             st.pcg_s,
             st.line_search_s,
             st.refine_iterations,
-            st.double_fallbacks
+            st.double_fallbacks,
+            st.model_directions
         );
     }
     println!(
-        "| {} | {:?} | {below} | {test:?} | {set} | mean | | {:.1} | | | | | {:.2} | | | | | | | | |",
+        "| {} | {:?} | {below} | {test:?} | {set} | mean | | {:.1} | | | | | {:.2} | | | | | | | | | |",
         case.name,
         ordering,
         newton as f64 / steps as f64,

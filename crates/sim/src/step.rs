@@ -1046,6 +1046,11 @@ pub(crate) fn friction_loop<const D: usize>(
             tolerance,
             ..*params
         };
+        if solves > 1 {
+            // The same unknowns as the last solve: its factor may precondition this one's
+            // first iteration (large 3D factors, `solver.linear: "auto"`).
+            newton.keep_last_factor();
+        }
         let stats = newton
             .minimize_to(obj, x, fixed, target, &solve_params)
             .map_err(|e| (e, obj.lag.count.max(1) - 1))?;

@@ -1799,6 +1799,7 @@ fn record(iteration: usize) -> femp_solver::IterationRecord {
         largest: (0, 1.0),
         exact: false,
         reused: false,
+        modelled: false,
         predicted: -1.0,
         bound: (1.0, None),
         alpha: 1.0,
@@ -2452,7 +2453,9 @@ fn stick_model_directions_reach_the_same_minimiser_in_fewer_iterations() {
     let n = 20;
     let solve = |obj: &mut FrictionalChain| {
         let mut x = obj.x_hat.clone();
-        let stats = Newton::new()
+        let mut newton = Newton::new();
+        newton.record_iterations(true);
+        let stats = newton
             .minimize(
                 obj,
                 &mut x,
@@ -2482,6 +2485,9 @@ fn stick_model_directions_reach_the_same_minimiser_in_fewer_iterations() {
     }
     assert_eq!(plain.model_directions, 0);
     assert!(model.model_directions_taken >= 1);
+    // The trace marks the iterations that took the model's direction.
+    let marked = model.trace.iter().filter(|r| r.modelled).count();
+    assert_eq!(marked, model.model_directions_taken);
     assert!(
         4 * model.iterations <= plain.iterations,
         "{} iterations with the model against {}",
@@ -2496,4 +2502,68 @@ fn stick_model_directions_reach_the_same_minimiser_in_fewer_iterations() {
     assert_eq!(refused.model_directions_taken, 0);
     assert_eq!(refused.iterations, plain.iterations);
     assert_eq!(x_refused, x_plain);
+}
+
+/// [`Newton::keep_last_factor`]: a second solve of the same unknowns (the crumpled chain's
+/// step, its predictor moved a little: a friction loop's next solve) preconditions its first
+/// iteration with the first solve's last factor instead of factorising — the same minimiser to
+/// 1e-10 as a solve that factorises, with no factorisation at all here. Other fixed DOFs, or
+/// no call, and it factorises as before; the call holds for one solve only.
+#[test]
+fn a_kept_factor_preconditions_the_next_solve_of_the_same_unknowns() {
+    let linear = LinearSolver::LastFactorCg {
+        rtol: 1e-10,
+        max_iterations: 40,
+    };
+    let params = NewtonParams {
+        tolerance: 1e-12,
+        hessian: HessianStrategy::Projected,
+        linear,
+        ..Default::default()
+    };
+    // Solves after the first (`keep` says, per solve, whether the factor is kept for it);
+    // returns the last solution and each later solve's numeric factorisations.
+    let run = |keep: &[bool], fix_another: bool| {
+        let (chain, x0, fixed) = crumpled_chain(20);
+        let mut obj = ChainStep {
+            chain,
+            inertia: 2.0e2,
+            x_hat: x0.iter().map(|v| v * 1.5).collect(),
+        };
+        let mut x = x0.clone();
+        let mut newton = Newton::new();
+        newton.minimize(&mut obj, &mut x, &fixed, &params).unwrap();
+        let mut fixed2 = fixed.clone();
+        if fix_another {
+            fixed2[2] = true;
+            fixed2[3] = true;
+        }
+        let mut counts = Vec::new();
+        for &k in keep {
+            obj.x_hat.iter_mut().for_each(|v| *v *= 1.001);
+            if k {
+                newton.keep_last_factor();
+            }
+            let before = newton.linear_stats().numeric_count;
+            newton.minimize(&mut obj, &mut x, &fixed2, &params).unwrap();
+            counts.push(newton.linear_stats().numeric_count - before);
+        }
+        (x, counts)
+    };
+    let (x_fresh, fresh) = run(&[false], false);
+    let (x_kept, kept) = run(&[true], false);
+    assert!(fresh[0] >= 1);
+    assert_eq!(
+        kept[0], 0,
+        "the kept factor must precondition the next solve"
+    );
+    for (a, b) in x_fresh.iter().zip(&x_kept) {
+        assert!((a - b).abs() < 1e-10, "{a} vs {b}");
+    }
+    // One solve only: the one after factorises again.
+    let (_, counts) = run(&[true, false], false);
+    assert!(counts[0] == 0 && counts[1] >= 1, "{counts:?}");
+    // Other unknowns: the kept factor is not used.
+    let (_, other) = run(&[true], true);
+    assert!(other[0] >= 1);
 }

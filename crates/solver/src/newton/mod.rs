@@ -82,6 +82,8 @@ pub struct Newton {
     /// The true gradient and the first direction's free part, kept while a piecewise model's
     /// direction is solved ([`Objective::begin_model`]).
     model_keep: (Vec<f64>, Vec<f64>),
+    /// [`Newton::keep_last_factor`] was called for the next solve.
+    keep_factor: bool,
 }
 
 /// The Hessian's sparse matrix and its factorisation: what a Newton iteration can hand to
@@ -136,6 +138,7 @@ impl Newton {
             record: false,
             factor_ready: false,
             model_keep: (Vec::new(), Vec::new()),
+            keep_factor: false,
         }
     }
 
@@ -144,6 +147,15 @@ impl Newton {
     /// stopped. `None` removes it.
     pub fn set_interrupt(&mut self, flag: Option<Arc<AtomicBool>>) {
         self.interrupt = flag;
+    }
+
+    /// The next solve has the unknowns of the last one (the friction loop's next solve within
+    /// a step): with [`LinearSolver::LastFactorCg`] (and [`LinearSolver::Auto`] on a large
+    /// factor) its first iteration may solve by CG preconditioned with the last factorisation
+    /// instead of factorising — if its fixed DOFs are those of the last solve. Applies to the
+    /// next solve only.
+    pub fn keep_last_factor(&mut self) {
+        self.keep_factor = true;
     }
 
     /// Whether the solves that follow record each Newton iteration ([`IterationRecord`]) in
@@ -223,6 +235,18 @@ impl Newton {
             self.precision = params.precision;
         }
         let n = fixed.len();
+        // The last factor stays usable as a preconditioner only for the same free DOFs.
+        let mut k = 0;
+        let same_unknowns = self.free.len() == n
+            && fixed.iter().zip(&self.free).all(|(&f, &v)| {
+                if f {
+                    v == u32::MAX
+                } else {
+                    k += 1;
+                    v == k - 1
+                }
+            });
+        let keep = std::mem::take(&mut self.keep_factor) && same_unknowns;
         self.free.clear();
         self.free_dofs.clear();
         for (d, &f) in fixed.iter().enumerate() {
@@ -235,7 +259,7 @@ impl Newton {
         }
         self.lin.chol.set_dof_map(&self.free_dofs);
         self.lin.analysed_in_solve = false;
-        self.factor_ready = false;
+        self.factor_ready &= keep;
         let nf = self.free_dofs.len();
         self.g.resize(n, 0.0);
         self.p.resize(n, 0.0);
@@ -295,7 +319,10 @@ impl Newton {
         let params = problem.params;
         state.stats.iterations += 1;
         let cg = state.cg.active(params.linear);
-        let reused_before = state.stats.reused_hessians;
+        let reused_before = (
+            state.stats.reused_hessians,
+            state.stats.model_directions_taken,
+        );
         let matrix = self.matrix_and_gradient(state, obj, x, problem, cg.is_some(), false)?;
         let mut solved = match cg {
             Some(cg) => self.solve_with_cg(state, obj, x, problem, matrix, cg)?,
@@ -438,7 +465,7 @@ impl Newton {
     fn record(
         &self,
         state: &mut SolveState,
-        (exact, reused_before, gp, dt): (bool, usize, f64, f64),
+        (exact, (reused_before, taken_before), gp, dt): (bool, (usize, usize), f64, f64),
         search: Option<(&LineSearch, usize)>,
     ) {
         if !self.record {
@@ -462,6 +489,7 @@ impl Newton {
             largest: (largest, size / dt),
             exact,
             reused: state.stats.reused_hessians > reused_before,
+            modelled: state.stats.model_directions_taken > taken_before,
             predicted: gp,
             bound,
             alpha,

@@ -98,6 +98,9 @@ pub struct IterationRecord {
     pub exact: bool,
     /// Whether the direction reused the previous iteration's matrix.
     pub reused: bool,
+    /// Whether the direction was solved with the objective's piecewise model
+    /// ([`crate::Objective::begin_model`]) and taken.
+    pub modelled: bool,
     /// The directional derivative `gᵀp` (the quadratic model's predicted first-order change).
     pub predicted: f64,
     /// The objective's feasible-step bound along `p` and what set it (`None`: nothing within
