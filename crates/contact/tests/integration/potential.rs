@@ -490,22 +490,30 @@ fn penetration_and_bad_input_are_errors() {
 
 /// Friction: gradient and Hessian against finite differences of the friction energy, in the
 /// sticking (|u| < ε) and sliding regimes, 2D and 3D; force opposes sliding with magnitude μλ.
-#[test]
-fn friction_derivatives_and_direction() {
+/// The unit cube's boundary (barrier d̂ = 0.1, κ = 100) and the friction terms lagged for
+/// `particles` of weights `w` near it (one per particle here).
+fn lagged_on_cube(
+    particles: &[Vector3<f64>],
+    w: &[f64],
+) -> (Vec<Vector3<f64>>, Vec<friction::FrictionTerm<3>>) {
     let (v, f) = cube();
     let pot = ContactPotential::new(
         LogBarrier::new(0.1, 1e2).unwrap(),
         BoundaryTopology::<3>::new(&f, 8).unwrap(),
     );
-    let particles = vec![Vector3::new(0.3, 0.6, 1.03), Vector3::new(1.04, 0.97, 0.5)];
-    let w = vec![0.3, 0.5];
     let mut c = Candidates::default();
-    broad_phase::candidates_within(&particles, &v, pot.topology.facets(), 0.1, &mut c);
+    broad_phase::candidates_within(particles, &v, pot.topology.facets(), 0.1, &mut c);
     let mut terms = Vec::new();
-    pot.collect_terms(&particles, &w, &v, &c, &mut terms)
-        .unwrap();
-    let lagged = friction::lag(&pot, &terms, &particles, &v);
+    pot.collect_terms(particles, w, &v, &c, &mut terms).unwrap();
+    let lagged = friction::lag(&pot, &terms, particles, &v);
     assert_eq!(lagged.len(), terms.len());
+    (v, lagged)
+}
+
+#[test]
+fn friction_derivatives_and_direction() {
+    let particles = vec![Vector3::new(0.3, 0.6, 1.03), Vector3::new(1.04, 0.97, 0.5)];
+    let (v, lagged) = lagged_on_cube(&particles, &[0.3, 0.5]);
     let params = FrictionParams::new(0.4, 1e-3, 1e-2).unwrap(); // ε = 1e-5 m
     let (np, nb) = (particles.len(), v.len());
     for scale in [3e-6, 1e-3] {
@@ -571,19 +579,9 @@ fn friction_derivatives_and_direction() {
 /// true one plus a PSD part, and unflagged terms keep their true derivatives bit for bit.
 #[test]
 fn friction_stick_model_flags_steps_through_the_stick_zone_and_models_them_stuck() {
-    let (v, f) = cube();
-    let pot = ContactPotential::new(
-        LogBarrier::new(0.1, 1e2).unwrap(),
-        BoundaryTopology::<3>::new(&f, 8).unwrap(),
-    );
     // Two particles above the top face (z = 1): its tangent plane is x–y.
     let particles = vec![Vector3::new(0.3, 0.6, 1.03), Vector3::new(0.7, 0.4, 1.05)];
-    let mut c = Candidates::default();
-    broad_phase::candidates_within(&particles, &v, pot.topology.facets(), 0.1, &mut c);
-    let mut terms = Vec::new();
-    pot.collect_terms(&particles, &[0.3, 0.5], &v, &c, &mut terms)
-        .unwrap();
-    let lagged = friction::lag(&pot, &terms, &particles, &v);
+    let (v, lagged) = lagged_on_cube(&particles, &[0.3, 0.5]);
     assert_eq!(lagged.len(), 2);
     let params = FrictionParams::new(0.4, 1e-3, 1e-2).unwrap(); // ε = 1e-5 m
     let eps = params.eps();
