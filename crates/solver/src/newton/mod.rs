@@ -428,7 +428,8 @@ impl Newton {
     /// CG preconditioned with a factor of the true Hessian, which the model's stiff blocks
     /// would defeat) and the model's gradient. `Some` with the model's direction if it descends
     /// the true energy (`gᵀp < 0` with the true gradient, which `g` holds again on return);
-    /// `None`, the first direction restored, if not.
+    /// `None`, the first direction restored, if not, or if the model's matrix could not be
+    /// solved.
     fn model_direction(
         &mut self,
         state: &mut SolveState,
@@ -450,11 +451,17 @@ impl Newton {
             });
         obj.end_model();
         std::mem::swap(&mut self.g, &mut self.model_keep.0);
-        let solved = solved?;
-        let direction = self.direction(problem.fixed)?;
-        if direction.gp < 0.0 {
-            state.stats.model_directions_taken += 1;
-            return Ok(Some((solved, direction)));
+        match solved {
+            Ok(solved) => {
+                let direction = self.direction(problem.fixed)?;
+                if direction.gp < 0.0 {
+                    state.stats.model_directions_taken += 1;
+                    return Ok(Some((solved, direction)));
+                }
+            }
+            // The model's matrix could not be solved: Newton's direction stands, and no factor
+            // of this iteration is held.
+            Err(_) => self.factor_ready = false,
         }
         self.rhs.clone_from(&self.model_keep.1);
         self.direction(problem.fixed).map(|_| None)
