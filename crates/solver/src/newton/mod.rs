@@ -319,7 +319,8 @@ impl Newton {
         let params = problem.params;
         state.stats.iterations += 1;
         let cg = state.cg.active(params.linear);
-        let reused_before = (
+        // Reused Hessians and taken model directions before this iteration (for its record).
+        let counts_before = (
             state.stats.reused_hessians,
             state.stats.model_directions_taken,
         );
@@ -349,7 +350,7 @@ impl Newton {
         if state.stagnation.stalled(flat && !converged, pmax) {
             state.stats.roundoff_stops += 1;
             state.stats.ended_at_roundoff = true;
-            self.record(state, (solved.exact, reused_before, gp, params.dt), None);
+            self.record(state, (solved.exact, counts_before, gp, params.dt), None);
             return Ok(Progress::Done);
         }
 
@@ -358,7 +359,7 @@ impl Newton {
         let halvings = state.stats.backtracks - backtracks;
         self.record(
             state,
-            (solved.exact, reused_before, gp, params.dt),
+            (solved.exact, counts_before, gp, params.dt),
             Some((&search, halvings)),
         );
         // Within a few thousand ulps of the energy, a predicted decrease is round-off.
