@@ -151,10 +151,10 @@ pub fn main(args: &[String]) -> Result<()> {
     }
     let root = super::validate::workspace_root();
     println!(
-        "| case | ordering | friction update below | Newton test | set | step | t (s) | Newton it. | friction it. | friction converged | contact terms | reused Hessians | wall (s) | assembly | symbolic | numeric | solve | CG | line search | refine it. | double factors | stick-model directions |"
+        "| case | ordering | friction update below | Newton test | set | step | t (s) | Newton it. | friction it. | friction converged | contact terms | reused Hessians | wall (s) | assembly | symbolic | numeric | solve | CG | line search | refine it. | double factors | stick-model directions | expanded steps |"
     );
     println!(
-        "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"
+        "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"
     );
     let combinations = combinations(&sets);
     let mut trace = trace_file.as_ref().map(|_| vec![TRACE_HEADER.to_string()]);
@@ -326,7 +326,7 @@ fn run_case(
         }
         let st = &r.stats;
         println!(
-            "| {} | {:?} | {below} | {test:?} | {set} | {} | {:.3} | {} | {} | {} | {} | {} | {w:.2} | {:.2} | {:.2} | {:.2} | {:.2} | {:.2} | {:.2} | {} | {} | {} |",
+            "| {} | {:?} | {below} | {test:?} | {set} | {} | {:.3} | {} | {} | {} | {} | {} | {w:.2} | {:.2} | {:.2} | {:.2} | {:.2} | {:.2} | {:.2} | {} | {} | {} | {} |",
             case.name,
             ordering,
             world.clock.step,
@@ -344,11 +344,12 @@ fn run_case(
             st.line_search_s,
             st.refine_iterations,
             st.double_fallbacks,
-            st.model_directions
+            st.model_directions,
+            st.expanded_steps
         );
     }
     println!(
-        "| {} | {:?} | {below} | {test:?} | {set} | mean | | {:.1} | | | | | {:.2} | | | | | | | | | |",
+        "| {} | {:?} | {below} | {test:?} | {set} | mean | | {:.1} | | | | | {:.2} | | | | | | | | | | |",
         case.name,
         ordering,
         newton as f64 / steps as f64,

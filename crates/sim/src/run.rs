@@ -740,6 +740,7 @@ fn record(m: &mut Metrics, summary: &mut Summary, report: &StepReport) {
     summary.newton_iterations += report.newton_iterations;
     summary.friction_iterations += report.friction_iterations;
     summary.stick_model_directions += s.model_directions;
+    summary.expanded_steps += s.expanded_steps;
     summary.augury_iterations += report.augury_iterations;
     summary.exact_hessian_iterations += s.exact_iterations;
     summary.exact_hessian_rejections += s.exact_rejections;

@@ -590,6 +590,7 @@ fn newton_params<const D: usize>(solver: &SolverSpec, dt: f64) -> NewtonParams {
             },
         },
         reuse_hessian_below: solver.reuse_hessian_below,
+        max_expansion: solver.line_search_expansion,
         ..Default::default()
     }
 }

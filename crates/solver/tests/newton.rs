@@ -1830,6 +1830,8 @@ fn solve_statistics_add_up() {
         lagged_updates: k,
         model_directions: k,
         model_directions_taken: k,
+        expanded_steps: k,
+        expansion_trials: k,
         symbolic_analyses: k,
         pcg_iterations: k,
         pcg_fallbacks: k,
@@ -2566,4 +2568,151 @@ fn a_kept_factor_preconditions_the_next_solve_of_the_same_unknowns() {
     // Other unknowns: the kept factor is not used.
     let (_, other) = run(&[true], true);
     assert!(other[0] >= 1);
+}
+
+/// `E = √(1 + (x₀ − 10)²) + ½(x₁ − x₀/2)²`, nearly linear in `x₀` far from 10, whose "projected"
+/// Hessian keeps a curvature `extra` in `x₀` that the energy does not have — the situation of a
+/// projected Newton solve whose clipped negative eigenvalues leave positive curvature along the
+/// direction it moves in (measured on the §6.7 twist: 30 iterations in a row of equal increments,
+/// each decreasing the energy by its first-order prediction `gᵀp`). An optional wall at
+/// `x₀ = wall` is known only to `max_step` (the energy goes on beyond it, so a step past the
+/// wall would not be caught by the energy); `evaluated` is the largest `x₀` the energy was
+/// evaluated at.
+struct Overcurved {
+    extra: f64,
+    wall: Option<f64>,
+    evaluated: f64,
+}
+
+impl Overcurved {
+    fn new(wall: Option<f64>) -> Self {
+        Self {
+            extra: 1.0,
+            wall,
+            evaluated: f64::NEG_INFINITY,
+        }
+    }
+}
+
+impl Objective for Overcurved {
+    fn num_dofs(&self) -> usize {
+        2
+    }
+    fn energy(&mut self, x: &[f64]) -> f64 {
+        self.evaluated = self.evaluated.max(x[0]);
+        (1.0 + (x[0] - 10.0).powi(2)).sqrt() + 0.5 * (x[1] - 0.5 * x[0]).powi(2)
+    }
+    fn gradient(&mut self, x: &[f64], g: &mut [f64]) {
+        let r = x[1] - 0.5 * x[0];
+        g[0] = (x[0] - 10.0) / (1.0 + (x[0] - 10.0).powi(2)).sqrt() - 0.5 * r;
+        g[1] = r;
+    }
+    fn hessian(&mut self, x: &[f64], h: &mut Triplets) {
+        let s = (1.0 + (x[0] - 10.0).powi(2)).powf(-1.5);
+        h.push(0, 0, s + 0.25 + self.extra);
+        h.push(0, 1, -0.5);
+        h.push(1, 1, 1.0);
+    }
+    /// The true Hessian (positive definite everywhere: its determinant is `s > 0`).
+    fn exact_hessian(&mut self, x: &[f64], h: &mut Triplets) -> bool {
+        let s = (1.0 + (x[0] - 10.0).powi(2)).powf(-1.5);
+        h.push(0, 0, s + 0.25);
+        h.push(0, 1, -0.5);
+        h.push(1, 1, 1.0);
+        true
+    }
+    fn max_step(&mut self, x: &[f64], p: &[f64]) -> StepBound {
+        match self.wall {
+            Some(w) if x[0] + p[0] > w => StepBound {
+                alpha: (w - x[0]) / p[0],
+                limit: Some(StepLimit::Other),
+            },
+            _ => StepBound::UNLIMITED,
+        }
+    }
+}
+
+/// [`NewtonParams::max_expansion`]: where the energy along the direction is much flatter than
+/// the projected Hessian says, the line search doubles the full step while the energy falls —
+/// the same minimiser in a fraction of the iterations, every step decreasing the energy; the
+/// trace shows steps longer than 1. Off (`1`), no step is longer than Newton's; nor is an exact
+/// Hessian's step ([`HessianStrategy::ExactWhenDefinite`]), the minimiser of its own model.
+#[test]
+fn expanding_steps_cross_flat_stretches_in_fewer_iterations() {
+    let solve = |max_expansion: f64, hessian: HessianStrategy| {
+        let mut obj = Overcurved::new(None);
+        let mut x = vec![-50.0, 0.0];
+        let mut newton = Newton::new();
+        newton.record_iterations(true);
+        let params = NewtonParams {
+            tolerance: 1e-9,
+            max_iterations: 500,
+            max_expansion,
+            hessian,
+            ..Default::default()
+        };
+        let stats = newton
+            .minimize(&mut obj, &mut x, &[false; 2], &params)
+            .unwrap();
+        (x, stats)
+    };
+    let (x_plain, plain) = solve(1.0, HessianStrategy::Projected);
+    let (x_long, long) = solve(64.0, HessianStrategy::Projected);
+    let (x_exact, exact) = solve(64.0, HessianStrategy::ExactWhenDefinite);
+    assert_eq!(exact.exact_iterations, exact.iterations);
+    assert_eq!(exact.expanded_steps, 0);
+    assert_eq!(exact.expansion_trials, 0);
+    for x in [&x_plain, &x_long, &x_exact] {
+        assert!(
+            (x[0] - 10.0).abs() < 1e-8 && (x[1] - 5.0).abs() < 1e-8,
+            "{x:?}"
+        );
+    }
+    assert_eq!(plain.expanded_steps, 0);
+    assert!(plain.trace.iter().all(|r| r.alpha <= 1.0));
+    assert!(long.expanded_steps >= 1 && long.expansion_trials >= long.expanded_steps);
+    let expanded = long.trace.iter().filter(|r| r.alpha > 1.0).count();
+    assert_eq!(expanded, long.expanded_steps);
+    assert!(
+        long.trace.iter().all(|r| r.change <= 0.0),
+        "{:?}",
+        long.trace
+    );
+    assert!(
+        4 * long.iterations <= plain.iterations,
+        "{} iterations expanding against {}",
+        long.iterations,
+        plain.iterations
+    );
+}
+
+/// An expanded step stays within the feasible fraction of the objective's bound along the
+/// longest step: with a wall at `x₀ = −20` that only `max_step` knows of, no energy is ever
+/// evaluated past it, although an unbounded expansion would have taken the iterate there in
+/// one step (and the energy beyond is lower).
+#[test]
+fn expanding_steps_stay_within_the_feasible_bound() {
+    let wall = -20.0;
+    let mut obj = Overcurved::new(Some(wall));
+    let mut x = vec![-50.0, 0.0];
+    let params = NewtonParams {
+        tolerance: 1e-9,
+        max_iterations: 30,
+        max_expansion: 64.0,
+        ..Default::default()
+    };
+    // The minimiser is behind the wall: the solve creeps up to it and stops at the limit.
+    let stats = match Newton::new().minimize(&mut obj, &mut x, &[false; 2], &params) {
+        Err(SolveError::IterationLimit { stats } | SolveError::LineSearchStalled { stats }) => {
+            *stats
+        }
+        other => panic!("{other:?}"),
+    };
+    assert!(stats.expanded_steps >= 1, "{stats:?}");
+    assert!(
+        obj.evaluated < wall,
+        "energy evaluated at x₀ = {}",
+        obj.evaluated
+    );
+    assert!(x[0] > wall - 0.1, "x₀ = {} stayed far from the wall", x[0]);
 }

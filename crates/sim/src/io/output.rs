@@ -58,6 +58,9 @@ pub struct Summary {
     /// stuck (`solver.friction_stick_model`; femp-solver `SolveStats::model_directions`),
     /// each at the cost of a second assembly and factorisation.
     pub stick_model_directions: usize,
+    /// Newton iterations whose line search took a step longer than the Newton step
+    /// (`solver.line_search_expansion`; femp-solver `SolveStats::expanded_steps`).
+    pub expanded_steps: usize,
     /// Iterations of the augury contact steps in total (augury).
     pub augury_iterations: usize,
     /// Newton iterations that used the exact Hessian (`solver.projection: "when_indefinite"`).

@@ -789,6 +789,15 @@ fn solver(solver: &SolverSpec) -> Result<(), SimError> {
             return Err(invalid(field, format!("{v} must be finite and ≥ 0")));
         }
     }
+    if !(solver.line_search_expansion >= 1.0 && solver.line_search_expansion <= 1e6) {
+        return Err(invalid(
+            "solver.line_search_expansion",
+            format!(
+                "{} must be from 1 (no expansion) to 1e6",
+                solver.line_search_expansion
+            ),
+        ));
+    }
     if !(0.0..1.0).contains(&solver.friction_forcing) {
         return Err(invalid(
             "solver.friction_forcing",

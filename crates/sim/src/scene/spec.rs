@@ -269,6 +269,12 @@ pub struct SolverSpec {
     /// and taken if it descends the energy: the solve lands in the stick zone instead of
     /// creeping to its kink over cut steps. Each solve's minimiser is the same.
     pub friction_stick_model: bool,
+    /// The longest step the line search may take, in multiples of the Newton step: a full
+    /// step that decreased the energy by at least 3/4 of the first-order prediction (the
+    /// energy much flatter along the direction than the projected Hessian says) is doubled
+    /// while the energy keeps falling, within the CCD and det F bounds (1: never beyond the
+    /// Newton step). Only a projected Hessian's step expands. Default 64.
+    pub line_search_expansion: f64,
     /// What Newton's convergence test measures the increment on.
     pub newton_test: NewtonTestSpec,
     /// When a step's Newton solve fails (iteration limit, stalled line search), solve the step
@@ -384,6 +390,7 @@ impl Default for SolverSpec {
             friction_relaxation: false,
             friction_aitken: None,
             friction_stick_model: true,
+            line_search_expansion: 64.0,
             newton_test: NewtonTestSpec::Points,
             retry_other_projection: true,
             max_substeps: 1024,

@@ -167,6 +167,16 @@ fn non_physical_values_are_named() {
         &v,
         &["solver.factor_cg_iterations", "must be from 1 to 100000"],
     );
+    for bad in [0.5, 2e6] {
+        v["solver"] = json!({ "line_search_expansion": bad });
+        expect_error(
+            &v,
+            &[
+                "solver.line_search_expansion",
+                "must be from 1 (no expansion) to 1e6",
+            ],
+        );
+    }
     v["solver"] = json!({ "friction_relaxation": "yes" });
     expect_error(&v, &["solver.friction_relaxation", "expected a boolean"]);
     v["solver"] = json!({ "friction_aitken": true, "friction_relaxation": true });

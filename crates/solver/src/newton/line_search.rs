@@ -3,21 +3,24 @@
 use std::time::Instant;
 
 use super::Newton;
-use super::params::{GRADIENT_STEP_RISE, Objective, Problem, StepLimit};
+use super::params::{
+    EXPAND_BELOW, GRADIENT_STEP_RISE, NewtonParams, Objective, Problem, ROUNDOFF, StepLimit,
+};
 use super::state::{LineSearch, SolveState};
 
 impl Newton {
     /// Backtracking from the feasible fraction of the objective's step bound (or 1) until
     /// Armijo holds — or, while prescribed DOFs are still on their way, until the energy is
-    /// finite; the accepted point is left in `trial`.
+    /// finite; a projected Hessian's full step (`may_expand`) that found the energy much
+    /// flatter than the model may expand ([`NewtonParams::max_expansion`]). The accepted point is left in `trial`.
     pub(super) fn line_search(
         &mut self,
         state: &mut SolveState,
         obj: &mut impl Objective,
         x: &[f64],
         problem: &Problem,
-        pmax: f64,
-        gp: f64,
+        (pmax, gp): (f64, f64),
+        may_expand: bool,
     ) -> LineSearch {
         let params = problem.params;
         let stats = &mut state.stats;
@@ -52,6 +55,18 @@ impl Newton {
             alpha *= 0.5;
             stats.backtracks += 1;
         }
+        if let Some(e1) = accepted
+            && may_expand
+            && alpha == 1.0
+            && at_targets
+            && params.max_expansion >= 2.0
+            // A decrease the energy's evaluation resolves, at least 3/4 of the first-order one.
+            && -gp > 1e4 * ROUNDOFF * state.e.abs().max(state.e0.abs())
+            && e1 - state.e <= EXPAND_BELOW * gp
+        {
+            let (a, ea) = self.expand(obj, x, params, (state.e, e1, gp), stats);
+            (alpha, accepted) = (a, Some(ea));
+        }
         stats.line_search_s += t.elapsed().as_secs_f64();
         LineSearch {
             accepted,
@@ -59,6 +74,56 @@ impl Newton {
             full_step_feasible,
             bound,
         }
+    }
+
+    /// The expanding part of the line search, after the full step `x + p` (in `trial`) took the
+    /// energy from `e` to `e1` with slope `gp` at 0: one feasibility bound along the longest
+    /// step `max_expansion · p`, then steps 2, 4, 8, … within its feasible fraction while the
+    /// energy keeps falling and Armijo holds. Returns the step length taken (1 if none beyond
+    /// the full step) and its energy, the point left in `trial`.
+    fn expand(
+        &mut self,
+        obj: &mut impl Objective,
+        x: &[f64],
+        params: &NewtonParams,
+        (e, e1, gp): (f64, f64, f64),
+        stats: &mut super::SolveStats,
+    ) -> (f64, f64) {
+        let cap = params.max_expansion;
+        for (l, p) in self.long_p.iter_mut().zip(&self.p) {
+            *l = cap * p;
+        }
+        let bound = obj.max_step(x, &self.long_p);
+        let reach = if bound.limit.is_some() || bound.alpha < 1.0 {
+            cap * params.feasible_fraction * bound.alpha
+        } else {
+            cap
+        };
+        let (mut best, mut e_best) = (1.0, e1);
+        let mut alpha = 2.0;
+        let mut trial_holds_best = true;
+        while alpha <= reach {
+            for (t, (x, p)) in self.trial.iter_mut().zip(x.iter().zip(&self.p)) {
+                *t = x + alpha * p;
+            }
+            let et = obj.energy(&self.trial);
+            stats.expansion_trials += 1;
+            if !(et.is_finite() && et < e_best && et <= e + params.armijo * alpha * gp) {
+                trial_holds_best = false;
+                break;
+            }
+            (best, e_best) = (alpha, et);
+            alpha *= 2.0;
+        }
+        if !trial_holds_best {
+            for (t, (x, p)) in self.trial.iter_mut().zip(x.iter().zip(&self.p)) {
+                *t = x + best * p;
+            }
+        }
+        if best > 1.0 {
+            stats.expanded_steps += 1;
+        }
+        (best, e_best)
     }
 
     /// The energy at the full step `x + p` (left in `trial`) if it may be taken although no

@@ -70,6 +70,8 @@ pub struct Newton {
     trial: Vec<f64>,
     /// The gradient at `trial`, for a step taken on the gradient's word.
     g_trial: Vec<f64>,
+    /// The direction times [`NewtonParams::max_expansion`], for the expanded step's bound.
+    long_p: Vec<f64>,
     pcg: Pcg,
     sol: Vec<f64>,
     /// Set from elsewhere to stop the solve before its next iteration.
@@ -132,6 +134,7 @@ impl Newton {
             rhs: Vec::new(),
             trial: Vec::new(),
             g_trial: Vec::new(),
+            long_p: Vec::new(),
             pcg: Pcg::new(),
             sol: Vec::new(),
             interrupt: None,
@@ -267,6 +270,7 @@ impl Newton {
         self.sol.resize(nf, 0.0);
         self.trial.resize(n, 0.0);
         self.g_trial.resize(n, 0.0);
+        self.long_p.resize(n, 0.0);
     }
 
     /// The Newton iterations from `x` until one of them ends the solve.
@@ -355,7 +359,10 @@ impl Newton {
         }
 
         let backtracks = state.stats.backtracks;
-        let search = self.line_search(state, obj, x, problem, pmax, gp);
+        // Only a projected Hessian's step may expand: an exact one's is the minimiser of its
+        // own quadratic model (a kink that model misses is the piecewise model's business).
+        let may_expand = !solved.exact && !modelled;
+        let search = self.line_search(state, obj, x, problem, (pmax, gp), may_expand);
         let halvings = state.stats.backtracks - backtracks;
         self.record(
             state,
@@ -383,7 +390,7 @@ impl Newton {
         match search.accepted {
             Some(et) => {
                 x.copy_from_slice(&self.trial);
-                if search.alpha == 1.0 {
+                if search.alpha >= 1.0 {
                     // A full step reaches the targets exactly (no round-off drift).
                     for (d, xd) in x.iter_mut().enumerate() {
                         if problem.fixed[d] {

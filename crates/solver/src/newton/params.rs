@@ -226,6 +226,16 @@ pub struct NewtonParams {
     /// Hessian by `O(‖Δx‖)`, so the direction (and the convergence test on it) is Newton's to
     /// that relative order. `0` (the default): every iteration assembles its own.
     pub reuse_hessian_below: f64,
+    /// The longest step, in multiples of the Newton step, an expanding line search may take
+    /// (`1`, the default: never beyond the Newton step). When the full step is feasible and
+    /// decreased the energy by at least 3/4 of the first-order prediction `−gᵀp` (the energy
+    /// along `p` is much flatter than the quadratic model: a projected Hessian that keeps
+    /// curvature the true energy does not have, so the solve would otherwise creep along `p`
+    /// in equal steps), the search doubles the step (2, 4, … up to this factor and the
+    /// feasible fraction of the objective's bound along the longest step) while the energy
+    /// keeps falling and Armijo holds, and takes the lowest. Each doubling costs one energy
+    /// evaluation; the bound one [`Objective::max_step`] call.
+    pub max_expansion: f64,
 }
 
 impl Default for NewtonParams {
@@ -243,6 +253,7 @@ impl Default for NewtonParams {
             hessian: HessianStrategy::Projected,
             linear: LinearSolver::Cholesky,
             reuse_hessian_below: 0.0,
+            max_expansion: 1.0,
         }
     }
 }
@@ -254,6 +265,11 @@ pub const ROUNDOFF: f64 = 1e-15;
 /// How far above the current energy, in units of the predicted decrease `−gᵀp`, a full
 /// Newton step's energy may come out and still be taken when the gradient confirms it.
 pub(super) const GRADIENT_STEP_RISE: f64 = 10.0;
+
+/// A full step expands ([`NewtonParams::max_expansion`]) when its energy change is at most this
+/// fraction of `gᵀp` (a decrease of at least 3/4 of the first-order prediction; on a quadratic
+/// along `p`, the line minimum then lies at twice the step or beyond).
+pub(super) const EXPAND_BELOW: f64 = 0.75;
 
 /// Consecutive round-off-flat iterations without ‖p‖ halving that end a solve as stationary.
 pub(super) const STAGNATION_ITERATIONS: usize = 4;

@@ -49,6 +49,11 @@ pub struct SolveStats {
     pub model_directions: usize,
     /// Of those, the iterations that took the model's direction (it descends the true energy).
     pub model_directions_taken: usize,
+    /// Iterations whose line search took a step longer than the Newton step
+    /// ([`crate::NewtonParams::max_expansion`]).
+    pub expanded_steps: usize,
+    /// Energy evaluations the expanding line search made beyond the full step.
+    pub expansion_trials: usize,
     /// Symbolic analyses (sparsity pattern changes).
     pub symbolic_analyses: usize,
     /// Conjugate-gradient iterations (matrix products), with [`LinearSolver::Pcg`] or
@@ -107,7 +112,8 @@ pub struct IterationRecord {
     /// the full step); NaN if the iteration ended the solve before a line search (the
     /// increment stopped shrinking at round-off).
     pub bound: (f64, Option<StepLimit>),
-    /// The step length taken (0 if the line search found none).
+    /// The step length taken (0 if the line search found none; above 1 if the step expanded,
+    /// [`crate::NewtonParams::max_expansion`]).
     pub alpha: f64,
     /// Halvings in the line search.
     pub backtracks: usize,
@@ -136,6 +142,8 @@ impl std::ops::AddAssign<&SolveStats> for SolveStats {
         self.lagged_updates += s.lagged_updates;
         self.model_directions += s.model_directions;
         self.model_directions_taken += s.model_directions_taken;
+        self.expanded_steps += s.expanded_steps;
+        self.expansion_trials += s.expansion_trials;
         self.symbolic_analyses += s.symbolic_analyses;
         self.pcg_iterations += s.pcg_iterations;
         self.pcg_fallbacks += s.pcg_fallbacks;
