@@ -12,7 +12,8 @@ impl Newton {
     /// Backtracking from the feasible fraction of the objective's step bound (or 1) until
     /// Armijo holds — or, while prescribed DOFs are still on their way, until the energy is
     /// finite; a projected Hessian's full step (`may_expand`) that found the energy much
-    /// flatter than the model may expand ([`NewtonParams::max_expansion`]). The accepted point is left in `trial`.
+    /// flatter than the model may expand ([`NewtonParams::max_expansion`]). The accepted point
+    /// is left in `trial`.
     pub(super) fn line_search(
         &mut self,
         state: &mut SolveState,
