@@ -112,7 +112,8 @@ impl Grid for Fine {
 }
 
 /// The paper's h = 0.0625 (32 768 particles at our 8 a cell) for μ = 0.2 (issue 40): the full
-/// tier, only when named (`--only twist_paper`; about 3–4 h).
+/// tier, only when named (`--only twist_paper`; about 2.2–2.5 h, estimated from its first 262
+/// steps).
 pub(super) struct Paper;
 
 impl Grid for Paper {
