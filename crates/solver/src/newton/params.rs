@@ -227,7 +227,9 @@ pub struct NewtonParams {
     /// that relative order. `0` (the default): every iteration assembles its own.
     pub reuse_hessian_below: f64,
     /// The longest step, in multiples of the Newton step, an expanding line search may take
-    /// (`1`, the default: never beyond the Newton step). When the full step is feasible and
+    /// (`1`, the default: never beyond the Newton step). When a projected Hessian's full step
+    /// (not the exact Hessian's, not a piecewise model's: [`HessianStrategy`],
+    /// [`Objective::begin_model`]) is feasible, no prescribed DOF is still moving, and the step
     /// decreased the energy by at least 3/4 of the first-order prediction `−gᵀp` (the energy
     /// along `p` is much flatter than the quadratic model: a projected Hessian that keeps
     /// curvature the true energy does not have, so the solve would otherwise creep along `p`
