@@ -4,15 +4,15 @@ use std::time::Instant;
 
 use super::Newton;
 use super::params::{
-    EXPAND_BELOW, GRADIENT_STEP_RISE, NewtonParams, Objective, Problem, ROUNDOFF, StepLimit,
+    EXPAND_BELOW, GRADIENT_STEP_RISE, NewtonParams, Objective, Problem, StepLimit,
 };
 use super::state::{LineSearch, SolveState};
 
 impl Newton {
     /// Backtracking from the feasible fraction of the objective's step bound (or 1) until
     /// Armijo holds — or, while prescribed DOFs are still on their way, until the energy is
-    /// finite; a projected Hessian's full step (`may_expand`) that found the energy much
-    /// flatter than the model may expand ([`NewtonParams::max_expansion`]). The accepted point
+    /// finite; a projected Hessian's full step whose predicted decrease the energy resolves
+    /// (`may_expand`) and that found the energy much flatter than the model may expand ([`NewtonParams::max_expansion`]). The accepted point
     /// is left in `trial`.
     pub(super) fn line_search(
         &mut self,
@@ -41,9 +41,7 @@ impl Newton {
         let at_targets = problem.at_targets(x);
         let mut accepted = None;
         while alpha * pmax >= params.min_step {
-            for (t, (x, p)) in self.trial.iter_mut().zip(x.iter().zip(&self.p)) {
-                *t = x + alpha * p;
-            }
+            self.step_to(x, alpha);
             let et = obj.energy(&self.trial);
             // While prescribed DOFs are still on their way, the energy may rise (the motion
             // does work on the system): accept any feasible, finite step then. Afterwards,
@@ -61,8 +59,7 @@ impl Newton {
             && alpha == 1.0
             && at_targets
             && params.max_expansion >= 2.0
-            // A decrease the energy's evaluation resolves, at least 3/4 of the first-order one.
-            && -gp > 1e4 * ROUNDOFF * state.e.abs().max(state.e0.abs())
+            // A decrease of at least 3/4 of the first-order one.
             && e1 - state.e <= EXPAND_BELOW * gp
         {
             let (a, ea) = self.expand(obj, x, params, (state.e, e1, gp), stats);
@@ -74,6 +71,13 @@ impl Newton {
             alpha,
             full_step_feasible,
             bound,
+        }
+    }
+
+    /// `x + alpha p` into `trial`.
+    fn step_to(&mut self, x: &[f64], alpha: f64) {
+        for (t, (x, p)) in self.trial.iter_mut().zip(x.iter().zip(&self.p)) {
+            *t = x + alpha * p;
         }
     }
 
@@ -104,9 +108,7 @@ impl Newton {
         let mut alpha = 2.0;
         let mut trial_holds_best = true;
         while alpha <= reach {
-            for (t, (x, p)) in self.trial.iter_mut().zip(x.iter().zip(&self.p)) {
-                *t = x + alpha * p;
-            }
+            self.step_to(x, alpha);
             let et = obj.energy(&self.trial);
             stats.expansion_trials += 1;
             if !(et.is_finite() && et < e_best && et <= e + params.armijo * alpha * gp) {
@@ -117,9 +119,7 @@ impl Newton {
             alpha *= 2.0;
         }
         if !trial_holds_best {
-            for (t, (x, p)) in self.trial.iter_mut().zip(x.iter().zip(&self.p)) {
-                *t = x + best * p;
-            }
+            self.step_to(x, best);
         }
         if best > 1.0 {
             stats.expanded_steps += 1;
@@ -142,9 +142,7 @@ impl Newton {
         e: f64,
         gp: f64,
     ) -> Option<f64> {
-        for (t, (x, p)) in self.trial.iter_mut().zip(x.iter().zip(&self.p)) {
-            *t = x + p;
-        }
+        self.step_to(x, 1.0);
         let et = obj.energy(&self.trial);
         if !(et.is_finite() && et - e <= -GRADIENT_STEP_RISE * gp) {
             return None;

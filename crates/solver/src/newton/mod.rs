@@ -359,9 +359,11 @@ impl Newton {
         }
 
         let backtracks = state.stats.backtracks;
+        // Within a few thousand ulps of the energy, a predicted decrease is round-off.
+        let resolved = -gp > 1e4 * ROUNDOFF * scale;
         // Only a projected Hessian's step may expand: an exact one's is the minimiser of its
         // own quadratic model (a kink that model misses is the piecewise model's business).
-        let may_expand = !solved.exact && !modelled;
+        let may_expand = !solved.exact && !modelled && resolved;
         let search = self.line_search(state, obj, x, problem, (pmax, gp), may_expand);
         let halvings = state.stats.backtracks - backtracks;
         self.record(
@@ -369,8 +371,7 @@ impl Newton {
             (solved.exact, counts_before, gp, params.dt),
             Some((&search, halvings)),
         );
-        // Within a few thousand ulps of the energy, a predicted decrease is round-off.
-        let within_roundoff = at_targets && -gp <= 1e4 * ROUNDOFF * scale;
+        let within_roundoff = at_targets && !resolved;
         // A backtracked step that leaves the energy exactly unchanged was accepted only
         // because Armijo's bound rounds to `e` (α·gᵀp vanishes next to it): no progress.
         // With a predicted decrease within round-off the iterate is stationary to working
