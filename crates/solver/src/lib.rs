@@ -45,8 +45,8 @@ pub use linear::{
     REFINE_RTOL, Threads, large_factor,
 };
 pub use newton::{
-    Forcing, HessianStrategy, IterationRecord, LinearSolver, Newton, NewtonParams, Objective,
-    SolveStats, StepBound, StepLimit,
+    AnalysedPattern, Forcing, HessianStrategy, IterationRecord, LinearSolver, Newton, NewtonParams,
+    Objective, SolveStats, StepBound, StepLimit,
 };
 pub use pcg::{Pcg, PcgOutcome};
 pub use sparse::{Triplets, UpperCsc};

@@ -254,6 +254,11 @@ impl Cholesky {
         self.dof_of.extend_from_slice(dof_of);
     }
 
+    /// The original DOF of each row ([`Cholesky::set_dof_map`]; empty: the identity).
+    pub fn dof_map(&self) -> &[usize] {
+        &self.dof_of
+    }
+
     fn par(&self, factor_nnz: usize, n: usize) -> Par {
         match self.threads {
             Threads::Seq => Par::Seq,

@@ -138,6 +138,49 @@ impl UpperCsc {
         self.n
     }
 
+    /// An `n × n` upper-triangular matrix of the pattern `col_ptr`, `row_idx` with every value
+    /// 0 (to analyse a pattern kept from elsewhere, [`crate::Newton::restore_analysis`]). The
+    /// pattern must be what [`UpperCsc::assemble`] builds: `col_ptr` of `n + 1` nondecreasing
+    /// offsets from 0 to `row_idx.len()`, each column's rows strictly increasing, at most the
+    /// column, and ending with the diagonal. Otherwise the first fault found, in words.
+    pub fn from_pattern(n: usize, col_ptr: &[usize], row_idx: &[usize]) -> Result<Self, String> {
+        if col_ptr.len() != n + 1 {
+            return Err(format!(
+                "{} column pointers for {n} columns (needs {})",
+                col_ptr.len(),
+                n + 1
+            ));
+        }
+        if col_ptr[0] != 0 || col_ptr[n] != row_idx.len() {
+            return Err(format!(
+                "column pointers run from {} to {}, not from 0 to the {} row indices",
+                col_ptr[0],
+                col_ptr[n],
+                row_idx.len()
+            ));
+        }
+        for c in 0..n {
+            let (a, b) = (col_ptr[c], col_ptr[c + 1]);
+            if b <= a {
+                return Err(format!("column {c} is empty (its diagonal is missing)"));
+            }
+            let rows = &row_idx[a..b];
+            if rows.windows(2).any(|w| w[0] >= w[1]) || rows[rows.len() - 1] != c {
+                return Err(format!(
+                    "column {c}'s rows are not increasing up to its diagonal"
+                ));
+            }
+        }
+        Ok(Self {
+            n,
+            col_ptr: col_ptr.to_vec(),
+            row_idx: row_idx.to_vec(),
+            values: vec![0.0; row_idx.len()],
+            pattern_id: new_pattern_id(),
+            ..Self::default()
+        })
+    }
+
     /// A number identifying the current sparsity pattern: it changes (process-wide unique)
     /// whenever a build or [`UpperCsc::widen`] changes the pattern, so derived structures can
     /// be kept while it stays the same. 0 before the first build.

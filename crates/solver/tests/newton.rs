@@ -2716,3 +2716,80 @@ fn expanding_steps_stay_within_the_feasible_bound() {
     );
     assert!(x[0] > wall - 0.1, "x₀ = {} stayed far from the wall", x[0]);
 }
+
+/// A solver keeps its last symbolic analysis across solves: a later matrix whose pattern it
+/// contains is factorised with it (explicit zeros, that elimination order), so the bits of later
+/// solves depend on what came before. [`Newton::analysed_pattern`] and
+/// [`Newton::restore_analysis`] carry that over to a solver built afresh (a resumed run): it
+/// then solves bit for bit as the original — where a fresh solver without it does not.
+#[test]
+fn a_restored_analysis_solves_as_the_solver_it_came_from() {
+    let case = matrices::grid3(6);
+    let n = case.csc.n();
+    let upper = |keep: &dyn Fn(usize, usize) -> bool| {
+        let mut t = Triplets::default();
+        for (r, c, v) in case.triplets.iter().filter(|&(r, c, _)| r <= c) {
+            if r == c || keep(r, c) {
+                t.push(r, c, v);
+            }
+        }
+        t
+    };
+    // Problem B couples fewer unknowns than A: its pattern is contained in A's.
+    let wide = upper(&|_, _| true);
+    let narrow = upper(&|r, c| (r * 31 + c * 17) % 5 != 0);
+    // Some unknowns fixed, so the rows are not the original DOFs (nested dissection groups
+    // them into nodes by the original numbering).
+    let fixed: Vec<bool> = (0..n).map(|d| d % 11 == 3).collect();
+    let params = NewtonParams {
+        ordering: Ordering::NestedDissection { block: 3 },
+        threads: Threads::Seq,
+        tolerance: 1e-9,
+        ..Default::default()
+    };
+    let solve = |newton: &mut Newton, a: &Triplets| {
+        let mut x = vec![0.0; n];
+        let stats = newton
+            .minimize(&mut QuarticOn { a: a.clone(), n }, &mut x, &fixed, &params)
+            .unwrap();
+        (
+            x.iter().map(|v| v.to_bits()).collect::<Vec<_>>(),
+            stats.iterations,
+            stats.symbolic_analyses,
+        )
+    };
+    let mut original = Newton::new();
+    assert!(original.analysed_pattern().is_none());
+    solve(&mut original, &wide);
+    let kept = original.analysed_pattern().expect("analysed");
+    let (x_original, its, symbolic) = solve(&mut original, &narrow);
+    assert_eq!(symbolic, 0, "the narrow solve reuses the wide analysis");
+    assert!(its >= 3);
+
+    let mut resumed = Newton::new();
+    resumed.restore_analysis(&params, &kept).unwrap();
+    assert_eq!(resumed.analysed_pattern().as_ref(), Some(&kept));
+    let (x_resumed, its_resumed, symbolic_resumed) = solve(&mut resumed, &narrow);
+    assert_eq!((its_resumed, symbolic_resumed), (its, 0));
+    assert!(x_resumed == x_original, "the resumed solver's bits differ");
+
+    // The check can fail: analysed for its own pattern, the narrow problem's bits differ.
+    let (x_fresh, _, symbolic_fresh) = solve(&mut Newton::new(), &narrow);
+    assert_eq!(symbolic_fresh, 1);
+    assert!(
+        x_fresh != x_original,
+        "the analysis made no difference to the bits"
+    );
+
+    // A malformed pattern is an error, not a panic.
+    let mut broken = kept.clone();
+    broken.row_idx.swap(0, 1);
+    broken.col_ptr[1] = 2;
+    let err = Newton::new()
+        .restore_analysis(&params, &broken)
+        .unwrap_err();
+    assert!(err.to_string().contains("analysed pattern"), "{err}");
+    let mut short = kept.clone();
+    short.dof_of.pop();
+    assert!(Newton::new().restore_analysis(&params, &short).is_err());
+}

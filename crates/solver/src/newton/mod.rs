@@ -88,6 +88,19 @@ pub struct Newton {
     keep_factor: bool,
 }
 
+/// A factorisation's symbolic analysis, by what it was made from: the upper-triangular
+/// pattern (`col_ptr`, `row_idx`, as [`UpperCsc`] stores it) and the original DOF of each row
+/// (empty: the identity). See [`Newton::analysed_pattern`].
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct AnalysedPattern {
+    /// The original DOF of each row.
+    pub dof_of: Vec<usize>,
+    /// Column pointers.
+    pub col_ptr: Vec<usize>,
+    /// Row indices.
+    pub row_idx: Vec<usize>,
+}
+
 /// The Hessian's sparse matrix and its factorisation: what a Newton iteration can hand to
 /// another thread while it computes the gradient.
 struct Linear {
@@ -97,6 +110,8 @@ struct Linear {
     // the current solve (whose unknowns keep their meaning, so patterns may be merged).
     analysed_col_ptr: Vec<usize>,
     analysed_row_idx: Vec<usize>,
+    /// The original DOF of each row of that analysis (nested dissection orders nodes).
+    analysed_dof_of: Vec<usize>,
     analysed_in_solve: bool,
     /// Seconds building the CSC matrix (counted as assembly).
     csc_s: f64,
@@ -119,6 +134,7 @@ impl Newton {
                 csc: UpperCsc::default(),
                 analysed_col_ptr: Vec::new(),
                 analysed_row_idx: Vec::new(),
+                analysed_dof_of: Vec::new(),
                 analysed_in_solve: false,
                 csc_s: 0.0,
                 unanalysed: false,
@@ -159,6 +175,54 @@ impl Newton {
     /// next solve only.
     pub fn keep_last_factor(&mut self) {
         self.keep_factor = true;
+    }
+
+    /// The sparsity pattern the factorisation was last analysed for (`None` before the first
+    /// analysis). A later solve whose matrix pattern it contains factorises with it — explicit
+    /// zeros, the same elimination order — so the bits of every later factorisation depend on
+    /// it: a checkpoint that keeps it lets a solver built afresh
+    /// ([`Newton::restore_analysis`]) continue exactly as this one would.
+    pub fn analysed_pattern(&self) -> Option<AnalysedPattern> {
+        self.lin.chol.is_analyzed().then(|| AnalysedPattern {
+            dof_of: self.lin.analysed_dof_of.clone(),
+            col_ptr: self.lin.analysed_col_ptr.clone(),
+            row_idx: self.lin.analysed_row_idx.clone(),
+        })
+    }
+
+    /// Analyse `pattern` (from [`Newton::analysed_pattern`]) with the ordering, threads and
+    /// precision of `params`, as if the last solve had: the next solves reuse it as they would
+    /// have reused the original. A malformed pattern is [`SolveError::BadProblem`] saying
+    /// what is wrong with it.
+    pub fn restore_analysis(
+        &mut self,
+        params: &NewtonParams,
+        pattern: &AnalysedPattern,
+    ) -> Result<(), SolveError> {
+        let n = pattern.col_ptr.len().saturating_sub(1);
+        if !(pattern.dof_of.is_empty() || pattern.dof_of.len() == n) {
+            return Err(SolveError::BadProblem(format!(
+                "an analysed pattern of {n} rows with {} row DOFs",
+                pattern.dof_of.len()
+            )));
+        }
+        let csc = UpperCsc::from_pattern(n, &pattern.col_ptr, &pattern.row_idx)
+            .map_err(|e| SolveError::BadProblem(format!("analysed pattern: {e}")))?;
+        self.lin.chol = Cholesky::with_precision(params.ordering, params.threads, params.precision);
+        self.ordering = params.ordering;
+        self.threads = params.threads;
+        self.precision = params.precision;
+        self.lin.chol.set_dof_map(&pattern.dof_of);
+        self.lin
+            .chol
+            .analyze(&csc)
+            .map_err(|e| SolveError::BadProblem(format!("analysed pattern: {e}")))?;
+        self.lin.analysed_col_ptr.clone_from(&pattern.col_ptr);
+        self.lin.analysed_row_idx.clone_from(&pattern.row_idx);
+        self.lin.analysed_dof_of.clone_from(&pattern.dof_of);
+        self.lin.analysed_in_solve = false;
+        self.factor_ready = false;
+        Ok(())
     }
 
     /// Whether the solves that follow record each Newton iteration ([`IterationRecord`]) in
@@ -975,6 +1039,8 @@ impl Linear {
             self.chol.analyze(&self.csc)?;
             self.analysed_col_ptr.clone_from(&self.csc.col_ptr);
             self.analysed_row_idx.clone_from(&self.csc.row_idx);
+            self.analysed_dof_of.clear();
+            self.analysed_dof_of.extend_from_slice(self.chol.dof_map());
             self.analysed_in_solve = true;
         }
         Ok(())
