@@ -74,6 +74,15 @@ pub enum SimError {
         /// Why.
         message: String,
     },
+    /// A checkpoint that cannot be written, read or resumed from (`what`: its file, or
+    /// `checkpoint`).
+    #[error("{what}: {message}")]
+    Checkpoint {
+        /// The checkpoint file (or `checkpoint`).
+        what: String,
+        /// What is wrong.
+        message: String,
+    },
     /// Another run holds the output directory's lock.
     #[error(
         "{}: another femp run is writing into this directory (it holds {}); wait for it to end or choose another --out",

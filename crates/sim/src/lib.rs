@@ -44,6 +44,7 @@ mod overlap;
 mod report;
 pub mod run;
 pub mod scene;
+pub mod state;
 pub mod steer;
 mod step;
 mod stepper;
@@ -53,6 +54,6 @@ pub mod world;
 pub use error::SimError;
 /// The solver's per-iteration record and step limits, as [`StepReport`] carries them.
 pub use femp_solver::{IterationRecord, StepLimit};
-pub use io::{metrics, output, render};
+pub use io::{checkpoint, metrics, output, render};
 pub use report::{StepReport, Unknown};
 pub use world::World;

@@ -54,9 +54,20 @@ enum Command {
         /// without it such outputs are an error.
         #[arg(long)]
         overwrite: bool,
-        /// Stop after this many steps.
+        /// Stop after this many steps (counted from the run's start, also when resumed).
         #[arg(long)]
         max_steps: Option<usize>,
+        /// Write DIR/checkpoint.femp at every frame time, replacing the last: what --resume
+        /// continues from if the run is stopped (BFEMP scenes).
+        #[arg(long)]
+        checkpoint: bool,
+        /// Continue the run in DIR from its checkpoint.femp instead of starting: metrics.csv
+        /// cut back to the checkpoint's step, later frames removed, the summary's totals carried
+        /// on; the steps after it are bit for bit those of a run never stopped. The scene must
+        /// be the run's own; only time.duration may differ (to run further). Keeps writing
+        /// checkpoints if --checkpoint is given too.
+        #[arg(long, conflicts_with_all = ["overwrite", "pictures"])]
+        resume: bool,
         /// Write metrics and the summary only, no frames.
         #[arg(long)]
         no_frames: bool,
@@ -221,6 +232,8 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             out,
             overwrite,
             max_steps,
+            checkpoint,
+            resume,
             no_frames,
             metrics_every,
             quiet,
@@ -256,6 +269,8 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                 overwrite,
                 metrics_in_file_only: true,
                 metrics_every: metrics_every as usize,
+                checkpoint,
+                resume,
                 command: std::env::args().collect(),
                 pictures: pictures.then(|| femp::render::PictureOptions {
                     key_frames: key_frames.into(),

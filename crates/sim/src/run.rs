@@ -11,6 +11,7 @@ use std::path::Path;
 use std::time::Instant;
 
 use crate::error::SimError;
+use crate::io::checkpoint::{CHECKPOINT, Checkpoint};
 use crate::io::metrics::Metrics;
 use crate::io::output::{Output, OutputOptions, Summary};
 use crate::io::render::{PictureOptions, Pictures};
@@ -48,6 +49,17 @@ pub struct RunOptions {
     /// count every step; penetration depth (and `augury.penetration_limit`), the energy-rise
     /// warning and the summary's penetration counts see the measured steps only.
     pub metrics_every: usize,
+    /// Write `checkpoint.femp` into the output directory at every frame time (whether or not
+    /// frames are written), replacing the last: the state `resume` continues from. BFEMP
+    /// scenes only (an error for augury).
+    pub checkpoint: bool,
+    /// Continue the run whose `checkpoint.femp` is in the output directory instead of starting
+    /// one: the world put where the checkpoint was taken, `metrics.csv` cut back to its rows up
+    /// to then, later frames removed, the summary's totals carried on (and the step recorded in
+    /// `resumed_at`). The steps that follow are bit for bit those of a run never stopped. The
+    /// scene must be the checkpoint's but for `time.duration` (a run may be continued further).
+    /// Not with `overwrite` or `pictures`.
+    pub resume: bool,
 }
 
 /// Everything a finished run measured, for callers that use femp as a library.
@@ -104,7 +116,20 @@ pub fn run_with<const D: usize>(
 ) -> Result<RunResult, SimError> {
     let start = Instant::now();
     let mut world = World::<D>::build_with(scene, opts.interrupt.clone())?;
-    let mut rec = Recorder::start_at(&world, out_dir, opts, start)?;
+    if (opts.checkpoint || opts.resume) && !world.stepper.is_implicit() {
+        return Err(SimError::Checkpoint {
+            what: out_dir.join(CHECKPOINT).display().to_string(),
+            message: "checkpoints are for BFEMP scenes; an augury run keeps state in its own \
+                      explicit system and is not resumed"
+                .into(),
+        });
+    }
+    let mut rec = if opts.resume {
+        Recorder::resume(&mut world, out_dir, opts)?
+    } else {
+        Recorder::start_at(&world, out_dir, opts, start)?
+    };
+    let start = rec.start;
     match drive(&mut world, &mut rec, opts, start, &mut inspect) {
         Ok(()) => rec.finish(&world),
         Err(e) => Err(rec.fail(&world, e)),
@@ -217,6 +242,115 @@ impl Recorder {
         })
     }
 
+    /// Continue the run whose checkpoint is in `out_dir` ([`RunOptions::resume`]): `world`
+    /// (built from the scene, not stepped) put where the checkpoint was taken, the outputs cut
+    /// back to it, the recorder's state as it was then.
+    fn resume<const D: usize>(
+        world: &mut World<D>,
+        out_dir: &Path,
+        opts: &RunOptions,
+    ) -> Result<Self, SimError> {
+        let refuse = |message: &str| SimError::Checkpoint {
+            what: out_dir.join(CHECKPOINT).display().to_string(),
+            message: message.into(),
+        };
+        if opts.overwrite {
+            return Err(refuse("a run is resumed or overwritten, not both"));
+        }
+        if opts.pictures.is_some() {
+            return Err(refuse(
+                "pictures are drawn over a whole run: a resumed run draws none",
+            ));
+        }
+        let path = out_dir.join(CHECKPOINT);
+        if !path.is_file() {
+            return Err(refuse(
+                "no checkpoint to resume from (runs write one with --checkpoint)",
+            ));
+        }
+        let checkpoint = Checkpoint::read(&path)?;
+        world.restore(&checkpoint.world)?;
+        let state: RunState = serde_json::from_value(checkpoint.run)
+            .map_err(|e| refuse(&format!("its run state: {e}")))?;
+        let out = Output::reopen(out_dir, world, world.clock.step, &state.frame_times)?;
+        if let Some(text) = &world.scene.source {
+            out.scene_copy(text)?;
+        }
+        if opts.progress {
+            note(format_args!(
+                "[{}] resumed from {} at step {} (t = {:.4} s)",
+                world.scene.name,
+                path.display(),
+                world.clock.step,
+                world.clock.time
+            ));
+        }
+        let mut summary = state.summary;
+        summary.status = "running".into();
+        summary.error = None;
+        summary.resumed_at.push(world.clock.step);
+        summary.command = opts.command.clone();
+        let commit = env!("FEMP_COMMIT");
+        if summary.commit != commit {
+            summary.warnings.push(format!(
+                "resumed at step {} by femp {commit}, the run before by {}: the steps after \
+                 the resumption may differ in round-off from an uninterrupted run of either",
+                world.clock.step, summary.commit
+            ));
+            summary.commit = commit.into();
+        }
+        out.summary(&summary)?;
+        let total_steps = step_count(world.scene.spec().time.duration, world.clock.dt);
+        let total_steps = opts.max_steps.map_or(total_steps, |m| m.min(total_steps));
+        let frame_dt = world
+            .scene
+            .spec()
+            .time
+            .frame_interval
+            .unwrap_or(world.clock.dt);
+        // The wall time so far counts on from the checkpoint's.
+        let now = Instant::now();
+        let start = now
+            .checked_sub(std::time::Duration::from_secs_f64(summary.wall_s.max(0.0)))
+            .unwrap_or(now);
+        Ok(Self {
+            out,
+            summary,
+            all: Vec::new(),
+            pictures: None,
+            energy: state.energy,
+            total_steps,
+            frame_dt,
+            next_frame: state.next_frame,
+            opts: opts.clone(),
+            start,
+            last_summary: now,
+        })
+    }
+
+    /// Write `checkpoint.femp`: `world` as it is now and the recorder's state.
+    fn checkpoint<const D: usize>(&mut self, world: &World<D>) -> Result<(), SimError> {
+        let mut summary = self.summary.clone();
+        summary.wall_s = self.start.elapsed().as_secs_f64();
+        summary.frames = self.out.frames();
+        let state = RunState {
+            summary,
+            energy: self.energy.clone(),
+            next_frame: self.next_frame,
+            frame_times: self.out.frame_times().to_vec(),
+        };
+        let path = self.out.dir().join(CHECKPOINT);
+        let run = serde_json::to_value(&state).map_err(|e| SimError::Checkpoint {
+            what: path.display().to_string(),
+            message: format!("its run state: {e}"),
+        })?;
+        Checkpoint {
+            world: world.state()?,
+            run,
+        }
+        .write(&path)
+    }
+
     /// The number of steps the run is expected to take.
     pub fn total_steps(&self) -> usize {
         self.total_steps
@@ -259,9 +393,16 @@ impl Recorder {
         }
         summary.steps = world.clock.step;
         summary.simulated_time = world.clock.time;
-        if !self.opts.no_frames && world.clock.time + 1e-12 >= self.next_frame {
-            self.out.frame(world)?;
+        if (!self.opts.no_frames || self.opts.checkpoint)
+            && world.clock.time + 1e-12 >= self.next_frame
+        {
+            if !self.opts.no_frames {
+                self.out.frame(world)?;
+            }
             self.next_frame += self.frame_dt;
+            if self.opts.checkpoint {
+                self.checkpoint(world)?;
+            }
         }
         // Augury: bodies that went through each other, or too deep into each other, stop the
         // run (`augury.penetration_limit`), after the step's row and frame are written.
@@ -483,7 +624,18 @@ fn finish_failed(
     e
 }
 
+/// What a [`Recorder`] keeps in a checkpoint besides the world: the summary so far, the energy
+/// watch, when the next frame is due and the frames written.
+#[derive(serde::Serialize, serde::Deserialize)]
+struct RunState {
+    summary: Summary,
+    energy: EnergyWatch,
+    next_frame: f64,
+    frame_times: Vec<f64>,
+}
+
 /// The energy a run starts with and the scale a rise is measured against.
+#[derive(Clone, Debug, serde::Serialize, serde::Deserialize)]
 struct EnergyWatch {
     energy0: f64,
     gravity0: f64,
@@ -576,7 +728,10 @@ fn drive<const D: usize>(
         b
     });
     let mut last_line = Instant::now();
-    for _ in 0..total_steps {
+    if let Some(b) = &bar {
+        b.set_position(world.clock.step as u64);
+    }
+    for _ in world.clock.step..total_steps {
         let t0 = Instant::now();
         let step = if world.interrupted() {
             Err(SimError::Interrupted {

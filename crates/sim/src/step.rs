@@ -547,7 +547,7 @@ fn contact_outcome<const D: usize>(
 }
 
 /// The Newton parameters of the scene's solver settings for a step of `dt`.
-fn newton_params<const D: usize>(solver: &SolverSpec, dt: f64) -> NewtonParams {
+pub(crate) fn newton_params<const D: usize>(solver: &SolverSpec, dt: f64) -> NewtonParams {
     NewtonParams {
         tolerance: solver.tolerance,
         dt,

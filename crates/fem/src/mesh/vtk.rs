@@ -530,6 +530,25 @@ impl Pvd {
         self.write()
     }
 
+    /// Record several frames (`(time, file)`, as [`Pvd::add`] one) as part `part`, and
+    /// rewrite the collection once.
+    pub fn add_all<'a>(
+        &mut self,
+        frames: impl IntoIterator<Item = (f64, &'a Path)>,
+        part: usize,
+    ) -> Result<(), FemError> {
+        for (time, file) in frames {
+            let rel = self
+                .path
+                .parent()
+                .and_then(|dir| file.strip_prefix(dir).ok())
+                .unwrap_or(file);
+            self.entries
+                .push((time, rel.to_string_lossy().replace('\\', "/"), part));
+        }
+        self.write()
+    }
+
     /// Number of frames recorded.
     pub fn len(&self) -> usize {
         self.entries.len()

@@ -7,14 +7,14 @@ use std::path::{Path, PathBuf};
 
 use femp_fem::mesh::vtk::{Encoding, Field, Pvd, Vtu};
 use nalgebra::SVector;
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 
 use crate::error::SimError;
 use crate::io::metrics::{Metrics, csv_header};
 use crate::world::World;
 
 /// Final state of a run, written to `summary.json`.
-#[derive(Clone, Debug, Default, Serialize)]
+#[derive(Clone, Debug, Default, Serialize, Deserialize)]
 pub struct Summary {
     /// Scene name.
     pub scene: String,
@@ -44,6 +44,11 @@ pub struct Summary {
     pub error: Option<String>,
     /// Steps completed.
     pub steps: usize,
+    /// The steps after which this run was resumed from a checkpoint (`femp run --resume`), in
+    /// order; empty for a run that went from start to end in one go. The totals count every
+    /// step once; `wall_s` adds up the wall time of every part.
+    #[serde(default)]
+    pub resumed_at: Vec<usize>,
     /// Simulated time reached (s).
     pub simulated_time: f64,
     /// Wall-clock time (s).
@@ -135,7 +140,7 @@ pub struct Summary {
 }
 
 /// What an augury run was set up with.
-#[derive(Clone, Debug, Default, Serialize)]
+#[derive(Clone, Debug, Default, Serialize, Deserialize)]
 pub struct AugurySummary {
     /// Background grid spacing (m).
     pub grid_spacing: f64,
@@ -148,7 +153,7 @@ pub struct AugurySummary {
 /// Where a run's wall-clock time went (seconds, summed over steps). The objective's parts
 /// (`objective`) overlap the solver's `assembly_s` (gradient and Hessian) and `line_search_s`
 /// (energies, CCD, det F bounds).
-#[derive(Clone, Debug, Default, Serialize)]
+#[derive(Clone, Debug, Default, Serialize, Deserialize)]
 pub struct RunTiming {
     /// Stencil rebuild, particle-to-grid and grid-to-particle transfers, advection.
     pub transfers_s: f64,
@@ -206,6 +211,8 @@ pub struct Output {
     metrics_len: u64,
     pvds: Vec<(String, Pvd)>,
     frames: usize,
+    /// The simulated time of each frame written.
+    frame_times: Vec<f64>,
     /// Encoding of frames.
     pub encoding: Encoding,
     /// Held for the run: the lock lives as long as the open file.
@@ -262,6 +269,8 @@ fn refuse_links<const D: usize>(dir: &Path, world: &World<D>) -> Result<(), SimE
         "metrics.csv.tmp",
         "frames",
         "pictures",
+        crate::io::checkpoint::CHECKPOINT,
+        "checkpoint.femp.tmp",
     ]
     .iter()
     .map(|s| s.to_string())
@@ -308,7 +317,8 @@ fn refuse_links<const D: usize>(dir: &Path, world: &World<D>) -> Result<(), SimE
     }
 }
 
-/// The files an earlier femp run left in `dir`: `summary.json`, `metrics.csv`, [`SCENE_COPY`], `*.pvd`,
+/// The files an earlier femp run left in `dir`: `summary.json`, `metrics.csv`, [`SCENE_COPY`],
+/// `checkpoint.femp`, `*.pvd`,
 /// `frames/*.vtu`, `pictures/key_*.png` and `pictures/animation.gif` (and their temporaries).
 /// Nothing else in the directory is femp's.
 pub fn earlier_outputs(dir: &Path) -> Vec<PathBuf> {
@@ -328,7 +338,12 @@ pub fn earlier_outputs(dir: &Path) -> Vec<PathBuf> {
     let mut out = list(dir, &|n| {
         matches!(
             n,
-            "summary.json" | "summary.json.tmp" | "metrics.csv" | "metrics.csv.tmp"
+            "summary.json"
+                | "summary.json.tmp"
+                | "metrics.csv"
+                | "metrics.csv.tmp"
+                | "checkpoint.femp"
+                | "checkpoint.femp.tmp"
         ) || n.starts_with(SCENE_COPY)
             || n.ends_with(".pvd")
             || n.ends_with(".pvd.tmp")
@@ -432,9 +447,96 @@ impl Output {
             metrics_len: header.len() as u64,
             pvds,
             frames: 0,
+            frame_times: Vec::new(),
             encoding: Encoding::Binary,
             _lock: lock,
             removed: earlier,
+        })
+    }
+
+    /// Reopen `dir` to continue the run whose checkpoint was taken after step `step`, when it
+    /// had written the frames at `frame_times`: locked as [`Output::create`] locks it;
+    /// `metrics.csv` cut back to its rows up to that step (its columns must be this world's);
+    /// later frames removed; the `.pvd` collections rewritten for the frames kept (which must
+    /// all be there).
+    pub fn reopen<const D: usize>(
+        dir: &Path,
+        world: &World<D>,
+        step: usize,
+        frame_times: &[f64],
+    ) -> Result<Self, SimError> {
+        refuse_links(dir, world)?;
+        let lock = lock(dir)?;
+        let mpath = dir.join("metrics.csv");
+        let text = std::fs::read_to_string(&mpath).map_err(io(&mpath))?;
+        let header = csv_header::<D>(&world.force_bodies(), world.stepper.method());
+        let mut lines = text.split_inclusive('\n');
+        if lines.next().map(str::trim_end) != Some(header.as_str()) {
+            return Err(SimError::Checkpoint {
+                what: mpath.display().to_string(),
+                message: "its columns are not this scene's: not the run the checkpoint continues"
+                    .into(),
+            });
+        }
+        let mut kept = format!("{header}\n");
+        for line in lines.filter(|l| l.ends_with('\n')) {
+            match line.split(',').next().and_then(|f| f.parse::<usize>().ok()) {
+                Some(k) if k <= step => kept.push_str(line),
+                _ => break,
+            }
+        }
+        write_whole(&mpath, kept.as_bytes()).map_err(io(&mpath))?;
+        let metrics = std::fs::OpenOptions::new()
+            .append(true)
+            .open(&mpath)
+            .map_err(io(&mpath))?;
+        let names: Vec<String> = world
+            .bodies
+            .mpm
+            .iter()
+            .map(|_| "particles".to_string())
+            .chain(world.bodies.fem.iter().map(|b| b.name.clone()))
+            .collect();
+        let frames = dir.join("frames");
+        std::fs::create_dir_all(&frames).map_err(io(&frames))?;
+        remove_frames_from(&frames, &names, frame_times.len())?;
+        let mut pvds = Vec::new();
+        for name in &names {
+            let mut pvd = Pvd::new(&dir.join(format!("{name}.pvd")));
+            let paths: Vec<PathBuf> = (0..frame_times.len())
+                .map(|k| frames.join(format!("{name}_{k:06}.vtu")))
+                .collect();
+            if let Some(missing) = paths.iter().find(|p| !p.is_file()) {
+                return Err(SimError::Checkpoint {
+                    what: missing.display().to_string(),
+                    message: "a frame the checkpoint's run wrote is missing".into(),
+                });
+            }
+            if !paths.is_empty() {
+                pvd.add_all(
+                    frame_times
+                        .iter()
+                        .copied()
+                        .zip(paths.iter().map(PathBuf::as_path)),
+                    0,
+                )
+                .map_err(|e| SimError::Build {
+                    context: "writing frames".into(),
+                    message: e.to_string(),
+                })?;
+            }
+            pvds.push((name.clone(), pvd));
+        }
+        Ok(Self {
+            dir: dir.to_path_buf(),
+            metrics,
+            metrics_len: kept.len() as u64,
+            pvds,
+            frames: frame_times.len(),
+            frame_times: frame_times.to_vec(),
+            encoding: Encoding::Binary,
+            _lock: lock,
+            removed: Vec::new(),
         })
     }
 
@@ -536,7 +638,13 @@ impl Output {
             part += 1;
         }
         self.frames += 1;
+        self.frame_times.push(world.clock.time);
         Ok(())
+    }
+
+    /// The simulated time of each frame written (in a resumed run, the earlier ones too).
+    pub fn frame_times(&self) -> &[f64] {
+        &self.frame_times
     }
 
     /// Copy the scene's text into the directory ([`SCENE_COPY`]), written whole.
@@ -556,6 +664,32 @@ impl Output {
         })?;
         write_replacing(&path, text.as_bytes()).map_err(io(&path))
     }
+}
+
+/// Remove the frames `{name}_{k}.vtu` (and their temporaries) with `k ≥ keep` from `frames`.
+fn remove_frames_from(frames: &Path, names: &[String], keep: usize) -> Result<(), SimError> {
+    let entries = std::fs::read_dir(frames).map_err(io(frames))?;
+    for e in entries.filter_map(Result::ok) {
+        let file = e.file_name();
+        let Some(n) = file.to_str() else { continue };
+        let stem = n
+            .strip_suffix(".vtu")
+            .or_else(|| n.strip_suffix(".vtu.tmp"));
+        let Some((name, k)) = stem.and_then(|s| s.rsplit_once('_')) else {
+            continue;
+        };
+        if names.iter().any(|b| b == name) && k.parse::<usize>().is_ok_and(|k| k >= keep) {
+            std::fs::remove_file(e.path()).map_err(io(&e.path()))?;
+        }
+    }
+    Ok(())
+}
+
+/// Write `path` whole: to a temporary file renamed over it.
+fn write_whole(path: &Path, bytes: &[u8]) -> std::io::Result<()> {
+    let tmp = path.with_extension("csv.tmp");
+    std::fs::write(&tmp, bytes)?;
+    std::fs::rename(&tmp, path)
 }
 
 /// Replace `path` by `bytes` atomically (temporary file + rename) or, when that fails, in

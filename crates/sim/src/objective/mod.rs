@@ -37,7 +37,7 @@ pub use inertia::Penalty;
 use particles::ParticleElasticity;
 
 /// Wall-clock seconds spent in the parts of the objective, accumulated over a step.
-#[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct ObjectiveTiming {
     /// Particle positions and deformation gradients from the grid DOFs (every evaluation).
     pub unpack_s: f64,

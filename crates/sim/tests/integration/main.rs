@@ -5,6 +5,7 @@
 mod augury;
 mod bad_input;
 mod bfemp;
+mod checkpoint;
 mod cli;
 mod fixtures;
 mod fuzz;
