@@ -82,6 +82,9 @@ pub struct Ctx {
     /// Lanes the experiment's cases run in at once (`validate --jobs N` with one experiment;
     /// [`super::experiment::drive`]).
     pub(super) case_lanes: usize,
+    /// `validate --resume`: runs with a checkpoint continue from it
+    /// ([`Ctx::run_scene_resumable`]).
+    pub(super) resume: bool,
 }
 
 /// A pictured run: its case's index, label, caption, key frames, whether only the last shows.
@@ -267,6 +270,81 @@ impl Ctx {
         Ok((r, probes))
     }
 
+    /// [`Ctx::run_scene_keep`] for runs of hours: a checkpoint at every frame time and every
+    /// probe appended to `probes.jsonl` beside the run's outputs (as `[step, probe]`), so that
+    /// with `validate --resume` a run stopped before its end — an interrupt, a machine or a
+    /// session going down — continues from its last checkpoint, with its probes up to it read
+    /// back: the same results as a run never stopped (femp's `--resume`). No pictures (a
+    /// resumed run draws none). The run's metrics in memory are those since the resumption
+    /// (the summary and `metrics.csv` have them all).
+    pub fn run_scene_resumable<const D: usize, T>(
+        &self,
+        label: &str,
+        spec: &SceneSpec,
+        mut probe: impl FnMut(&femp::World<D>) -> T,
+    ) -> Result<(Result<RunResult, femp::SimError>, Vec<T>)>
+    where
+        T: serde::Serialize + serde::de::DeserializeOwned,
+    {
+        let scene = self.scene(label, spec)?;
+        anyhow::ensure!(scene.spec().dimension == D, "{label}: not a {D}D scene");
+        let out = self.dir.join(label);
+        let checkpoint = out.join(femp::checkpoint::CHECKPOINT);
+        let resume = self.resume && checkpoint.is_file();
+        let probes_path = out.join("probes.jsonl");
+        let mut probes = Vec::new();
+        let mut kept = String::new();
+        if resume {
+            let step = femp::checkpoint::Checkpoint::read(&checkpoint)?.step();
+            let text = std::fs::read_to_string(&probes_path)
+                .with_context(|| format!("reading {}", probes_path.display()))?;
+            for line in text.lines() {
+                let (k, p): (usize, T) = serde_json::from_str(line)
+                    .with_context(|| format!("{}: a line is not [step, probe]", label))?;
+                if k <= step {
+                    probes.push(p);
+                    kept.push_str(line);
+                    kept.push('\n');
+                }
+            }
+        }
+        std::fs::create_dir_all(&out)?;
+        std::fs::write(&probes_path, &kept)?;
+        let mut file = std::fs::OpenOptions::new()
+            .append(true)
+            .open(&probes_path)?;
+        let bar = self.bar(label, &scene);
+        bar.set_position(probes.len() as u64);
+        let opts = RunOptions {
+            no_frames: true,
+            overwrite: !resume,
+            checkpoint: true,
+            resume,
+            ..Default::default()
+        };
+        let mut failed_write = None;
+        let r = run_with::<D>(scene, &out, &opts, |w, _: &Metrics| {
+            let p = probe(w);
+            if failed_write.is_none() {
+                let line = serde_json::to_string(&(w.clock.step, &p)).map_err(anyhow::Error::from);
+                failed_write = line
+                    .and_then(|l| {
+                        use std::io::Write;
+                        Ok(writeln!(file, "{l}")?)
+                    })
+                    .err();
+            }
+            probes.push(p);
+            bar.inc(1);
+        });
+        bar.finish_and_clear();
+        self.progress.remove(&bar);
+        if let Some(e) = failed_write {
+            return Err(e.context(format!("writing {}", probes_path.display())));
+        }
+        Ok((r, probes))
+    }
+
     /// How a run labelled `label` writes: no frames, `pictures` if any, replacing the same
     /// run's outputs from an earlier `validate`.
     fn run_options(&self, label: &str, pictures: Option<Pictures>) -> RunOptions {
@@ -327,6 +405,7 @@ mod tests {
             progress: indicatif::MultiProgress::new(),
             pictured: Default::default(),
             case_lanes: 1,
+            resume: false,
             settings: settings
                 .iter()
                 .map(|(k, v)| (k.to_string(), crate::settings::value(v)))
@@ -370,5 +449,74 @@ mod tests {
                 .unwrap()
         );
         assert!(err.contains("no_such_field"), "{err}");
+    }
+
+    /// A resumable run stopped part-way (here: a shorter duration, as a session's end would
+    /// stop it) and resumed with `validate --resume` gives the probes and metrics of a run
+    /// never stopped, bit for bit; without a checkpoint `--resume` starts afresh.
+    #[test]
+    fn a_resumed_run_keeps_its_probes_and_ends_as_one_never_stopped() {
+        let root = std::env::temp_dir().join(format!("femp-xtask-resume-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&root);
+        let at = |sub: &str, resume: bool| Ctx {
+            dir: root.join(sub),
+            charts: root.join(sub),
+            resume,
+            ..ctx(&[])
+        };
+        let mut spec = ctx(&[]).fixture("block_on_plate").unwrap();
+        spec.time.frame_interval = Some(2.0 * spec.time.dt);
+        spec.time.duration = 16.0 * spec.time.dt;
+        let probe = |w: &femp::World<2>| {
+            let m = w.bodies.mpm.as_ref().unwrap();
+            (w.clock.step, m.x[0][1].to_bits(), m.v[7][0].to_bits())
+        };
+        let whole = at("whole", false)
+            .run_scene_resumable::<2, _>("run", &spec, probe)
+            .unwrap();
+        let whole_run = whole.0.unwrap();
+        assert_eq!(whole.1.len(), 16);
+        // Stopped after 11 steps (its last checkpoint: step 10), then resumed to the end.
+        let mut short = spec.clone();
+        short.time.duration = 11.0 * spec.time.dt;
+        let (first, p) = at("parts", false)
+            .run_scene_resumable::<2, _>("run", &short, probe)
+            .unwrap();
+        assert_eq!((first.unwrap().summary.steps, p.len()), (11, 11));
+        let (rest, probes) = at("parts", true)
+            .run_scene_resumable::<2, _>("run", &spec, probe)
+            .unwrap();
+        let rest = rest.unwrap();
+        assert_eq!(rest.summary.resumed_at, [10]);
+        assert!(probes == whole.1, "the probes differ");
+        assert_eq!(
+            rest.summary.newton_iterations,
+            whole_run.summary.newton_iterations
+        );
+        // metrics.csv without its wall-time column.
+        let csv = |sub: &str| {
+            let text = std::fs::read_to_string(root.join(sub).join("run/metrics.csv")).unwrap();
+            let wall = text
+                .lines()
+                .next()
+                .and_then(|h| h.split(',').position(|c| c == "wall_s"))
+                .unwrap();
+            text.lines()
+                .map(|l| {
+                    let mut f: Vec<&str> = l.split(',').collect();
+                    f.remove(wall);
+                    f.join(",")
+                })
+                .collect::<Vec<_>>()
+        };
+        assert_eq!(csv("whole").len(), 18);
+        assert_eq!(csv("whole"), csv("parts"));
+        // `--resume` where no checkpoint is: the run starts from the beginning.
+        let (fresh, p) = at("fresh", true)
+            .run_scene_resumable::<2, _>("run", &spec, probe)
+            .unwrap();
+        assert!(fresh.unwrap().summary.resumed_at.is_empty());
+        assert!(p == whole.1);
+        let _ = std::fs::remove_dir_all(&root);
     }
 }

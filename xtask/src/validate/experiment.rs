@@ -203,6 +203,7 @@ mod tests {
             pictured: Default::default(),
             settings: Vec::new(),
             case_lanes: 1,
+            resume: false,
         }
     }
 

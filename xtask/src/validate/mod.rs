@@ -257,7 +257,7 @@ const EXPERIMENTS: &[Experiment] = &[
 
 const USAGE: &str =
     "usage: cargo xtask validate [--quick | --full] [--only NAME…] [--jobs N] [--report] \
-     [--out DIR] [--publish] [--set KEY=VALUE …]
+     [--out DIR] [--publish] [--set KEY=VALUE …] [--resume]
 
   --quick    coarse resolutions, minutes (default)
   --full     the papers' parameters (hours); with no --only, publishes to docs/validation/full/
@@ -274,7 +274,10 @@ const USAGE: &str =
              (`--set solver.projection=when_indefinite`; VALUE is JSON, or else a string;
              repeatable), to measure a setting on the whole suite before it becomes a default.
              The report says so; the output directory defaults to target/validation/<tier>-set
-             and holds outcomes of one set of settings only; nothing is published";
+             and holds outcomes of one set of settings only; nothing is published
+  --resume   runs that write checkpoints (twist_paper, twist_paper_mu1: hours a run) continue
+             from their last one in the output directory instead of starting again — the same
+             results as a run never stopped; a run without a checkpoint starts";
 
 /// What `cargo xtask validate` was asked to do.
 struct Args {
@@ -286,6 +289,7 @@ struct Args {
     worker: bool,
     out: Option<PathBuf>,
     set: Vec<Setting>,
+    resume: bool,
 }
 
 /// The arguments after `validate`; `None` after printing the help.
@@ -298,6 +302,7 @@ fn parse_args(args: &[String]) -> Result<Option<Args>> {
     let mut worker = false;
     let mut out: Option<PathBuf> = None;
     let mut set = Vec::new();
+    let mut resume = false;
     let mut it = args.iter().peekable();
     while let Some(a) = it.next() {
         match a.as_str() {
@@ -314,6 +319,7 @@ fn parse_args(args: &[String]) -> Result<Option<Args>> {
                 }
             }
             "--full" => tier = Tier::Full,
+            "--resume" => resume = true,
             "--out" => match it.next() {
                 Some(d) => out = Some(PathBuf::from(d)),
                 None => bail!("--out needs a directory\n{USAGE}"),
@@ -376,7 +382,19 @@ fn parse_args(args: &[String]) -> Result<Option<Args>> {
         worker,
         out,
         set,
+        resume,
     }))
+}
+
+/// Where a tier's outputs go without `--out`: `target/validation/<tier>`, or `<tier>-set` for
+/// runs with `--set` (their outcomes are not the suite's own).
+fn default_out(root: &std::path::Path, tier: Tier, set: &[Setting]) -> PathBuf {
+    let dir = if set.is_empty() {
+        tier.name().to_string()
+    } else {
+        format!("{}-set", tier.name())
+    };
+    root.join("target/validation").join(dir)
 }
 
 /// Entry point: parse `args` (after `validate`), run, print, report.
@@ -390,6 +408,7 @@ pub fn main(args: &[String]) -> Result<()> {
         worker,
         out,
         set,
+        resume,
     }) = parse_args(args)?
     else {
         return Ok(());
@@ -398,14 +417,7 @@ pub fn main(args: &[String]) -> Result<()> {
     // The code that runs is the code this binary was built from.
     let commit = git_describe();
     let settings = settings::labels(&set);
-    let out = out.unwrap_or_else(|| {
-        let dir = if set.is_empty() {
-            tier.name().to_string()
-        } else {
-            format!("{}-set", tier.name())
-        };
-        root.join("target/validation").join(dir)
-    });
+    let out = out.unwrap_or_else(|| default_out(&root, tier, &set));
     std::fs::create_dir_all(&out)?;
     // Before anything runs: the directory's saved outcomes are of these settings (`load`).
     for e in EXPERIMENTS {
@@ -418,7 +430,7 @@ pub fn main(args: &[String]) -> Result<()> {
     let selected = selection(tier, &only, report_only);
     let parallel = jobs > 1 && selected.len() > 1 && !worker;
     if parallel {
-        run_workers(&selected, jobs, tier, &out, &set)?;
+        run_workers(&selected, jobs, tier, &out, &set, resume)?;
     }
     // Experiments run only when named: listed once they have an outcome in `out`.
     let mut unnamed = Vec::new();
@@ -464,6 +476,7 @@ pub fn main(args: &[String]) -> Result<()> {
             pictured: Default::default(),
             settings: set.clone(),
             case_lanes: if selected.len() == 1 { jobs } else { 1 },
+            resume,
         };
         let t = Instant::now();
         let outcome = (e.run)(&ctx)

@@ -14,7 +14,8 @@
 //!
 //! Three experiments share this code ([`Grid`]): `twist` runs the fixture as committed (h =
 //! 0.25), `twist_fine` at h = 0.125 (the full tier only), and `twist_paper` (μ = 0.2) and
-//! `twist_paper_mu1` at the paper's h = 0.0625 (only when named: hours a run).
+//! `twist_paper_mu1` at the paper's h = 0.0625 (only when named: hours a run; checkpointed, so
+//! `validate --resume` continues a run stopped part-way).
 
 use std::marker::PhantomData;
 
@@ -77,6 +78,8 @@ pub(super) trait Grid {
     const H: Option<f64>;
     /// The stem of its chart and of its runs' labels (and so of their pictures).
     const STEM: &'static str;
+    /// Runs of hours: checkpointed, resumed by `validate --resume`, no pictures.
+    const RESUMABLE: bool = false;
     /// The μ a tier runs (none: the experiment is not part of that tier).
     fn mus(tier: Tier) -> &'static [f64];
 }
@@ -119,6 +122,7 @@ pub(super) struct Paper;
 impl Grid for Paper {
     const H: Option<f64> = Some(0.0625);
     const STEM: &'static str = "twist_paper";
+    const RESUMABLE: bool = true;
     fn mus(tier: Tier) -> &'static [f64] {
         match tier {
             Tier::Quick => &[],
@@ -128,12 +132,13 @@ impl Grid for Paper {
 }
 
 /// The paper's h = 0.0625 for μ = 1, where the paper's cube does not slip: an experiment of its
-/// own (`--only twist_paper_mu1`; about 6–8 h), so that each can run in one sitting.
+/// own (`--only twist_paper_mu1`; hours: a run stopped part-way continues with `--resume`).
 pub(super) struct PaperMu1;
 
 impl Grid for PaperMu1 {
     const H: Option<f64> = Some(0.0625);
     const STEM: &'static str = "twist_paper_mu1";
+    const RESUMABLE: bool = true;
     fn mus(tier: Tier) -> &'static [f64] {
         match tier {
             Tier::Quick => &[],
@@ -216,7 +221,7 @@ pub(super) struct Case {
 }
 
 /// One sample after a step.
-#[derive(Clone, Copy)]
+#[derive(Clone, Copy, serde::Serialize, serde::Deserialize)]
 struct Sample {
     t: f64,
     /// The twist of the top cell layer.
@@ -313,14 +318,19 @@ impl<G: Grid> Experiment for Twist<G> {
         let (mu, h) = (c.mu, c.h);
         // The grid's stem keeps the three experiments' pictures apart in the shared `charts/`.
         let label = format!("{}_mu{mu}", G::STEM);
-        let pictures = (mu == 1.0).then(|| Pictures::keys("μ = 1", 3).gif().up(2));
-        let mut top: Option<(Top, Top)> = None;
-        let (run, samples) = ctx.run_scene_keep::<3, Sample>(&label, &c.spec, pictures, |w| {
-            let x = &w.bodies.mpm.as_ref().expect("the cube is MPM").x;
-            let (cell, fixture) =
-                top.get_or_insert_with(|| (Top::of(x, h), Top::of(x, FIXTURE_LAYER)));
-            Sample::of(w, cell, fixture)
-        })?;
+        // The particles measured are those where the cube starts (a world built from the scene
+        // and not stepped), so that a resumed run measures the same ones.
+        let start = femp::World::<3>::build(ctx.scene(&label, &c.spec)?)?;
+        let x0 = &start.bodies.mpm.as_ref().expect("the cube is MPM").x;
+        let (cell, fixture) = (Top::of(x0, h), Top::of(x0, FIXTURE_LAYER));
+        drop(start);
+        let probe = |w: &femp::World<3>| Sample::of(w, &cell, &fixture);
+        let (run, samples) = if G::RESUMABLE {
+            ctx.run_scene_resumable::<3, Sample>(&label, &c.spec, probe)?
+        } else {
+            let pictures = (mu == 1.0).then(|| Pictures::keys("μ = 1", 3).gif().up(2));
+            ctx.run_scene_keep::<3, Sample>(&label, &c.spec, pictures, probe)?
+        };
         Ok(Measured { run, samples })
     }
 
@@ -366,7 +376,7 @@ impl<G: Grid> Experiment for Twist<G> {
             };
             out.checks.push(Check::count(
                 &format!("μ = {mu}: penetrations, max over steps"),
-                r.metrics.iter().map(|m| m.penetrations).max().unwrap_or(0),
+                r.summary.max_penetrations,
                 0,
             ));
             let end = *samples.last().expect("steps");

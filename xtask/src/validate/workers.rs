@@ -18,6 +18,7 @@ pub(super) fn run_workers(
     tier: Tier,
     out: &Path,
     settings: &[crate::settings::Setting],
+    resume: bool,
 ) -> Result<()> {
     use std::io::BufRead;
     use std::process::{Command, Stdio};
@@ -54,6 +55,7 @@ pub(super) fn run_workers(
             .arg("--out")
             .arg(out)
             .args(labels.iter().flat_map(|l| ["--set", l.as_str()]))
+            .args(resume.then_some("--resume"))
             .arg("--only")
             .args(g)
             .stdout(Stdio::piped())
