@@ -190,8 +190,7 @@ impl Recorder {
                 crate::io::output::describe_outputs(out_dir, out.removed())
             ));
         }
-        let total_steps = step_count(world.scene.spec().time.duration, world.clock.dt);
-        let total_steps = opts.max_steps.map_or(total_steps, |m| m.min(total_steps));
+        let (total_steps, frame_dt) = schedule(world, opts);
         let scene_copy = match &world.scene.source {
             Some(text) => {
                 out.scene_copy(text)?;
@@ -221,12 +220,6 @@ impl Recorder {
                 return Err(finish_failed(&mut summary, &out, start, e, world.driven()));
             }
         };
-        let frame_dt = world
-            .scene
-            .spec()
-            .time
-            .frame_interval
-            .unwrap_or(world.clock.dt);
         Ok(Self {
             out,
             summary,
@@ -300,14 +293,7 @@ impl Recorder {
             summary.commit = commit.into();
         }
         out.summary(&summary)?;
-        let total_steps = step_count(world.scene.spec().time.duration, world.clock.dt);
-        let total_steps = opts.max_steps.map_or(total_steps, |m| m.min(total_steps));
-        let frame_dt = world
-            .scene
-            .spec()
-            .time
-            .frame_interval
-            .unwrap_or(world.clock.dt);
+        let (total_steps, frame_dt) = schedule(world, opts);
         // The wall time so far counts on from the checkpoint's.
         let now = Instant::now();
         let start = now
@@ -652,6 +638,22 @@ impl EnergyWatch {
         }
         summary.energy_rise = ((summary.peak_energy - self.energy0) / self.scale).max(0.0);
     }
+}
+
+/// How many steps a run of `world` takes (the scene's duration, or `opts.max_steps` if fewer)
+/// and the time between its frames (and checkpoints).
+fn schedule<const D: usize>(world: &World<D>, opts: &RunOptions) -> (usize, f64) {
+    let total_steps = step_count(world.scene.spec().time.duration, world.clock.dt);
+    let frame_dt = world
+        .scene
+        .spec()
+        .time
+        .frame_interval
+        .unwrap_or(world.clock.dt);
+    (
+        opts.max_steps.map_or(total_steps, |m| m.min(total_steps)),
+        frame_dt,
+    )
 }
 
 /// A run's start: the initial state's metrics row (and in `all`), frame and pictures; the

@@ -520,14 +520,7 @@ impl Pvd {
     /// Record a frame at `time` (a file in the same directory as the `.pvd`, or below it) as
     /// part `part` (several bodies per time) and rewrite the collection.
     pub fn add(&mut self, time: f64, file: &Path, part: usize) -> Result<(), FemError> {
-        let rel = self
-            .path
-            .parent()
-            .and_then(|dir| file.strip_prefix(dir).ok())
-            .unwrap_or(file);
-        self.entries
-            .push((time, rel.to_string_lossy().replace('\\', "/"), part));
-        self.write()
+        self.add_all([(time, file)], part)
     }
 
     /// Record several frames (`(time, file)`, as [`Pvd::add`] one) as part `part`, and

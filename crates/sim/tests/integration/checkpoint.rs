@@ -44,7 +44,7 @@ fn block(duration: f64, integrator: &str) -> Value {
 }
 
 /// Every number a step changes, as bits.
-fn bits<const D: usize>(w: &World<D>) -> Vec<u64> {
+pub(crate) fn bits<const D: usize>(w: &World<D>) -> Vec<u64> {
     let mut out = vec![w.clock.step as u64, w.clock.time.to_bits()];
     if let Some(m) = &w.bodies.mpm {
         for q in 0..m.x.len() {

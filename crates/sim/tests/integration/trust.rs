@@ -548,31 +548,6 @@ fn overlapping_augury_bodies_are_counted_and_warned_about() {
     assert_eq!(summary(&out)["warnings"], json!([]));
 }
 
-/// The state of a world as bits: every particle's position, velocity and deformation gradient
-/// and every FEM vertex's position and velocity.
-fn state_bits(w: &World<2>) -> Vec<u64> {
-    let mut out = Vec::new();
-    if let Some(m) = &w.bodies.mpm {
-        for q in 0..m.x.len() {
-            out.extend(
-                m.x[q]
-                    .iter()
-                    .chain(m.v[q].iter())
-                    .chain(m.f[q].iter())
-                    .map(|v| v.to_bits()),
-            );
-        }
-    }
-    for b in &w.bodies.fem {
-        out.extend(
-            b.x.iter()
-                .chain(&b.v)
-                .flat_map(|v| v.iter().map(|c| c.to_bits())),
-        );
-    }
-    out
-}
-
 #[test]
 fn any_number_of_threads_gives_the_same_bits() {
     // 5 000 particles with friction on a plate of 1 200 elements: the sums over particles and
@@ -605,7 +580,7 @@ fn any_number_of_threads_gives_the_same_bits() {
                         .push((m.kinetic_energy + m.elastic_energy + m.barrier_energy).to_bits());
                     energies.push(r.newton_iterations as u64);
                 }
-                (state_bits(&w), energies)
+                (crate::checkpoint::bits(&w), energies)
             })
     };
     let one = run(1);
