@@ -243,7 +243,7 @@ impl<const D: usize> World<D> {
     /// `state` was: the next step is then the one the original world would have taken next.
     /// The scene may differ in `time.duration` only; a different scene, dimension, set of
     /// bodies (a mesh file edited since) or a malformed state is an error saying which, and
-    /// leaves the world as it was.
+    /// leaves the bodies and the clock as they were.
     pub fn restore(&mut self, state: &WorldState) -> Result<(), SimError> {
         let h = &state.header;
         if h.dimension != D {
@@ -287,7 +287,7 @@ impl<const D: usize> World<D> {
         let Stepper::Bfemp(bfemp) = &mut self.stepper else {
             return Err(error("only BFEMP worlds have checkpoints".into()));
         };
-        // The solvers first: a malformed pattern leaves the bodies untouched.
+        // The solvers first: a malformed pattern leaves the bodies and the clock untouched.
         let params = crate::step::newton_params::<D>(&self.scene.spec().solver, self.clock.dt);
         for (newton, pattern) in [&mut bfemp.newton, &mut bfemp.projection]
             .into_iter()
