@@ -243,8 +243,9 @@ impl Recorder {
         out_dir: &Path,
         opts: &RunOptions,
     ) -> Result<Self, SimError> {
+        let path = out_dir.join(CHECKPOINT);
         let refuse = |message: &str| SimError::Checkpoint {
-            what: out_dir.join(CHECKPOINT).display().to_string(),
+            what: path.display().to_string(),
             message: message.into(),
         };
         if opts.overwrite {
@@ -255,7 +256,6 @@ impl Recorder {
                 "pictures are drawn over a whole run: a resumed run draws none",
             ));
         }
-        let path = out_dir.join(CHECKPOINT);
         if !path.is_file() {
             return Err(refuse(
                 "no checkpoint to resume from (runs write one with --checkpoint)",

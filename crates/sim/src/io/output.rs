@@ -254,6 +254,18 @@ fn lock(dir: &Path) -> Result<File, SimError> {
     Ok(file)
 }
 
+/// The name of each frame series a run of `world` writes (`NAME.pvd`, `frames/NAME_k.vtu`):
+/// `particles` if it has MPM bodies, then each FEM body's name.
+fn series_names<const D: usize>(world: &World<D>) -> Vec<String> {
+    world
+        .bodies
+        .mpm
+        .iter()
+        .map(|_| "particles".to_string())
+        .chain(world.bodies.fem.iter().map(|b| b.name.clone()))
+        .collect()
+}
+
 /// Refuse symbolic links where a run writes inside `dir`: its lock, `summary.json`,
 /// `metrics.csv`, the scene copy, the `.pvd` collections, the `frames/` and `pictures/`
 /// directories and any `.vtu`, `.png` or `.gif` in them (with their temporaries). A link there
@@ -283,13 +295,7 @@ fn refuse_links<const D: usize>(dir: &Path, world: &World<D>) -> Result<(), SimE
             .display()
             .to_string(),
     );
-    let bodies = world
-        .bodies
-        .mpm
-        .iter()
-        .map(|_| "particles".to_string())
-        .chain(world.bodies.fem.iter().map(|b| b.name.clone()));
-    for b in bodies {
+    for b in series_names(world) {
         names.push(format!("{b}.pvd"));
         names.push(format!("{b}.pvd.tmp"));
     }
@@ -490,13 +496,7 @@ impl Output {
             .append(true)
             .open(&mpath)
             .map_err(io(&mpath))?;
-        let names: Vec<String> = world
-            .bodies
-            .mpm
-            .iter()
-            .map(|_| "particles".to_string())
-            .chain(world.bodies.fem.iter().map(|b| b.name.clone()))
-            .collect();
+        let names = series_names(world);
         let frames = dir.join("frames");
         std::fs::create_dir_all(&frames).map_err(io(&frames))?;
         remove_frames_from(&frames, &names, frame_times.len())?;
