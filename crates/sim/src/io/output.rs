@@ -433,20 +433,14 @@ impl Output {
             csv_header::<D>(&world.force_bodies(), world.stepper.method())
         );
         metrics.write_all(header.as_bytes()).map_err(io(&mpath))?;
-        let mut pvds = Vec::new();
-        if world.bodies.mpm.is_some() {
-            pvds.push((
-                "particles".to_string(),
-                Pvd::new(&dir.join("particles.pvd")),
-            ));
-        }
-        for b in &world.bodies.fem {
-            // Names are validated as safe file names (scene::validate): the file stays in `dir`.
-            pvds.push((
-                b.name.clone(),
-                Pvd::new(&dir.join(format!("{}.pvd", b.name))),
-            ));
-        }
+        // Body names are validated as safe file names (scene::validate): the files stay in `dir`.
+        let pvds = series_names(world)
+            .into_iter()
+            .map(|n| {
+                let pvd = Pvd::new(&dir.join(format!("{n}.pvd")));
+                (n, pvd)
+            })
+            .collect();
         Ok(Self {
             dir: dir.to_path_buf(),
             metrics,
