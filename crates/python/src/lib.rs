@@ -55,6 +55,12 @@ create_exception!(
 );
 create_exception!(
     _femp,
+    CheckpointError,
+    FempError,
+    "A checkpoint that cannot be written, read or resumed from: none there, a damaged file, another scene's or other bodies' state, a World steered from outside (the message says which)."
+);
+create_exception!(
+    _femp,
     OutputError,
     FempError,
     "An output directory that is busy (another run holds it) or holds an earlier run's outputs."
@@ -71,6 +77,11 @@ fn py_err(e: SimError) -> PyErr {
         | SimError::TooLarge { .. } => SceneError::new_err(msg),
         SimError::Interrupted { .. } => PyKeyboardInterrupt::new_err(msg),
         SimError::State { .. } => StateError::new_err(msg),
+        SimError::Checkpoint { .. } => CheckpointError::new_err(
+            msg.replace("--checkpoint", "checkpoint=True")
+                .replace("--overwrite", "overwrite=True")
+                .replace("--pictures", "pictures=True"),
+        ),
         // The program's options, named as the Python calls take them.
         SimError::OutputBusy { .. }
         | SimError::StaleOutput { .. }
@@ -211,7 +222,7 @@ impl PyScene {
 /// as JSON text, metrics.csv's column names, and one row of values per measured step (the
 /// values themselves: metrics.csv holds them rounded to its precision).
 #[pyfunction]
-#[pyo3(signature = (scene, out, max_steps = None, frames = true, overwrite = false, progress = false, metrics_every = 1))]
+#[pyo3(signature = (scene, out, max_steps = None, frames = true, overwrite = false, progress = false, metrics_every = 1, checkpoint = false, resume = false))]
 #[allow(clippy::too_many_arguments)]
 fn run(
     py: Python<'_>,
@@ -222,6 +233,8 @@ fn run(
     overwrite: bool,
     progress: bool,
     metrics_every: usize,
+    checkpoint: bool,
+    resume: bool,
 ) -> PyResult<(String, Vec<String>, Vec<Vec<f64>>)> {
     if metrics_every == 0 {
         return Err(pyo3::exceptions::PyValueError::new_err(
@@ -238,6 +251,8 @@ fn run(
             interrupt: Some(flag),
             overwrite,
             metrics_every,
+            checkpoint,
+            resume,
             command: vec!["python: femp.run".into()],
             ..Default::default()
         };
@@ -854,7 +869,12 @@ impl PyWorld {
     /// Start recording into `out` what `femp run` writes: the scene's copy, summary.json, the
     /// initial metrics row and frame now, then every step's row and frames at the scene's frame
     /// interval (`frames=False`: none), pictures with `pictures=True`.
-    #[pyo3(signature = (out, frames = true, overwrite = false, metrics_every = 1, pictures = false))]
+    ///
+    /// `checkpoint=True` also writes `checkpoint.femp` at every frame time (BFEMP, a World not
+    /// steered from outside); `resume=True` puts the World where the checkpoint in `out` was
+    /// taken and continues that recording (`femp run --resume`).
+    #[pyo3(signature = (out, frames = true, overwrite = false, metrics_every = 1, pictures = false, checkpoint = false, resume = false))]
+    #[allow(clippy::too_many_arguments)]
     fn record(
         &mut self,
         py: Python<'_>,
@@ -863,6 +883,8 @@ impl PyWorld {
         overwrite: bool,
         metrics_every: usize,
         pictures: bool,
+        checkpoint: bool,
+        resume: bool,
     ) -> PyResult<()> {
         let mut s = self.st();
         if s.recorder.is_some() {
@@ -880,14 +902,56 @@ impl PyWorld {
             overwrite,
             metrics_every,
             pictures: pictures.then(femp::render::PictureOptions::default),
+            checkpoint,
+            resume,
             command: vec!["python: femp.World.record".into()],
             ..Default::default()
         };
-        let world = &s.world;
+        let world = &mut s.world;
         let rec = py
-            .detach(|| with_world!(world, w => femp::run::Recorder::start(w, &out, &opts)))
+            .detach(|| {
+                with_world!(world, w => if resume {
+                    femp::run::Recorder::resume(w, &out, &opts)
+                } else {
+                    femp::run::Recorder::start(w, &out, &opts)
+                })
+            })
             .map_err(py_err)?;
         s.recorder = Some(rec);
+        Ok(())
+    }
+
+    /// Write the World's state to the file `path` (`femp::checkpoint`'s format): every later
+    /// step depends on nothing else, so `restore` of it into a World of the same scene
+    /// steps on bit for bit. A BFEMP World not steered from outside.
+    fn checkpoint(&self, py: Python<'_>, path: PathBuf) -> PyResult<()> {
+        let s = self.st();
+        let world = &s.world;
+        py.detach(|| {
+            with_world!(world, w => femp::checkpoint::Checkpoint::for_world(w)
+                .and_then(|c| c.write(&path)))
+        })
+        .map_err(py_err)
+    }
+
+    /// Put the World where the state in the file `path` was taken (a World of the same scene;
+    /// only `time.duration` may differ). Refused, the World unchanged, for another scene's or
+    /// other bodies' state or a damaged file.
+    fn restore(&mut self, py: Python<'_>, path: PathBuf) -> PyResult<()> {
+        let mut s = self.st();
+        if s.recorder.is_some() {
+            return Err(PyValueError::new_err(
+                "World.restore: recording; stop_recording() first (a recording continues \
+                 from a checkpoint with record(out, resume=True))",
+            ));
+        }
+        let WorldState { world, last, .. } = &mut *s;
+        py.detach(|| {
+            let c = femp::checkpoint::Checkpoint::read(&path)?;
+            with_world!(world, w => w.restore(&c.world))
+        })
+        .map_err(py_err)?;
+        *last = None;
         Ok(())
     }
 
@@ -1530,6 +1594,7 @@ fn _femp(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("SimulationError", py.get_type::<SimulationError>())?;
     m.add("OutputError", py.get_type::<OutputError>())?;
     m.add("StateError", py.get_type::<StateError>())?;
+    m.add("CheckpointError", py.get_type::<CheckpointError>())?;
     m.add_class::<PyScene>()?;
     m.add_class::<PyWorld>()?;
     m.add_class::<PyTransfer>()?;

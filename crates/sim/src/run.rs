@@ -238,7 +238,7 @@ impl Recorder {
     /// Continue the run whose checkpoint is in `out_dir` ([`RunOptions::resume`]): `world`
     /// (built from the scene, not stepped) put where the checkpoint was taken, the outputs cut
     /// back to it, the recorder's state as it was then.
-    fn resume<const D: usize>(
+    pub fn resume<const D: usize>(
         world: &mut World<D>,
         out_dir: &Path,
         opts: &RunOptions,

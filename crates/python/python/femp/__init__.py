@@ -21,8 +21,14 @@ a JSON string or a dict, and edit as dicts::
         world.step(5)
 
 Single contacts, the barrier, CCD and APIC transfers: ``femp.contact`` and ``femp.transfer``.
+Long runs survive a stop: ``femp.run(scene, out, checkpoint=True)`` keeps ``checkpoint.femp``
+in ``out`` at every frame time, and ``femp.run(scene, out, resume=True)`` continues from it — the
+same steps, bit for bit, as a run never stopped (``World.checkpoint`` / ``World.restore`` for a
+World stepped from Python).
+
 Errors: ``femp.SceneError`` (bad scene; a ``ValueError`` too), ``femp.SimulationError`` (a run
-that failed part-way), ``femp.OutputError`` (a busy or used output directory), ``OSError``;
+that failed part-way), ``femp.OutputError`` (a busy or used output directory),
+``femp.CheckpointError`` (no checkpoint, a damaged one, another scene's), ``OSError``;
 Ctrl-C raises ``KeyboardInterrupt`` and keeps what a run wrote.
 """
 
@@ -38,7 +44,7 @@ import numpy as np
 import numpy.typing as npt
 
 from . import _femp
-from ._femp import FempError, OutputError, SimulationError, __version__
+from ._femp import CheckpointError, FempError, OutputError, SimulationError, __version__
 from . import contact, transfer
 from . import spec
 from . import spec as spec_module
@@ -58,6 +64,7 @@ __all__ = [
     "SimulationError",
     "OutputError",
     "StateError",
+    "CheckpointError",
     "Recording",
     "__version__",
 ]
@@ -426,17 +433,44 @@ class World:
 
     def record(self, out: Union[str, os.PathLike], *, frames: bool = True,
                overwrite: bool = False, metrics_every: int = 1,
-               pictures: bool = False) -> "Recording":
+               pictures: bool = False, checkpoint: bool = False,
+               resume: bool = False) -> "Recording":
         """Record the steps that follow into the directory ``out`` as ``femp run`` would: the
         scene's copy, summary.json (kept current), the metrics row and frame of the state now,
         then every step's row and a frame at the scene's frame interval; key-frame PNGs and a
         GIF with ``pictures=True``. The same files as ``femp.run`` for the same steps. End it
         with :meth:`stop_recording` or use the returned :class:`Recording` in a ``with``
-        block. A step that fails ends the recording (summary.json says why)."""
+        block. A step that fails ends the recording (summary.json says why).
+
+        ``checkpoint=True`` also writes ``checkpoint.femp`` into ``out`` at every frame time
+        (a BFEMP World not steered from outside; else the step that would write it raises
+        :class:`CheckpointError`). ``resume=True`` continues the recording whose checkpoint is
+        in ``out``: the World is put where the checkpoint was taken (a World of the same scene;
+        only ``time.duration`` may differ), metrics.csv cut back to it, later frames removed,
+        and the steps that follow are those of a recording never stopped
+        (:class:`CheckpointError` if there is none, it is damaged, or is another scene's)."""
         if not os.fspath(out):
             raise ValueError("World.record: out is empty: name the output directory")
-        self._inner.record(os.fspath(out), frames, overwrite, metrics_every, pictures)
+        self._inner.record(os.fspath(out), frames, overwrite, metrics_every, pictures,
+                           checkpoint, resume)
         return Recording(self, os.fspath(out))
+
+    def checkpoint(self, path: Union[str, os.PathLike]) -> None:
+        """Write the World's state to the file ``path``: positions, velocities, deformation
+        gradients, the clock and the solvers' analyses — everything its later steps depend
+        on. :meth:`restore` puts a World of the same scene back there. A BFEMP World not
+        steered from outside (forces, targets or a state set between steps are not part of the
+        scene: :class:`CheckpointError`)."""
+        if not os.fspath(path):
+            raise ValueError("World.checkpoint: path is empty: name the file")
+        self._inner.checkpoint(os.fspath(path))
+
+    def restore(self, path: Union[str, os.PathLike]) -> None:
+        """Put the World where the state in the file ``path`` (:meth:`checkpoint`, or a run's
+        ``checkpoint.femp``) was taken: its next steps are bit for bit those the World it was
+        taken of took. :class:`CheckpointError`, the World unchanged, for another scene's or
+        other bodies' state or a damaged file; not while recording."""
+        self._inner.restore(os.fspath(path))
 
     @property
     def recording(self) -> bool:
@@ -486,12 +520,23 @@ def run(
     overwrite: bool = False,
     progress: bool = False,
     metrics_every: int = 1,
+    checkpoint: bool = False,
+    resume: bool = False,
 ) -> RunResult:
     """Run ``scene`` into the directory ``out`` as ``femp run`` does (frames unless
     ``frames=False``, metrics.csv, summary.json). ``metrics_every=N`` measures the state and
     writes a metrics row every N steps and after the last (``femp run --metrics-every N``).
     A run that fails part-way raises :class:`SimulationError` and keeps what it wrote;
-    summary.json says why."""
+    summary.json says why.
+
+    ``checkpoint=True`` keeps ``checkpoint.femp`` in ``out`` at every frame time (BFEMP scenes;
+    ``femp run --checkpoint``); ``resume=True`` continues the run whose checkpoint is in
+    ``out`` (``femp run --resume``): its metrics.csv cut back to the checkpoint, later frames
+    removed, and the steps that follow bit for bit those of a run never stopped; the scene may
+    differ in ``time.duration`` only (continue a finished run further). ``metrics`` of the
+    result then holds the rows from the resumption on (metrics.csv has them all;
+    ``summary["resumed_at"]`` lists the resumptions). :class:`CheckpointError` if there is no
+    checkpoint, it is damaged or another scene's, or with ``overwrite``."""
     try:
         if not isinstance(scene, Scene):
             raise TypeError(f"femp.run needs a femp.Scene, got {type(scene).__name__}")
@@ -500,7 +545,8 @@ def run(
             # mean the current one).
             raise ValueError("femp.run: out is empty: name the output directory")
         summary, columns, rows = _femp.run(
-            scene._inner, os.fspath(out), max_steps, frames, overwrite, progress, metrics_every
+            scene._inner, os.fspath(out), max_steps, frames, overwrite, progress, metrics_every,
+            checkpoint, resume
         )
     except _femp.SceneError as e:
         raise _scene_error(e) from None

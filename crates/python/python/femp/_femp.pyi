@@ -8,6 +8,7 @@ import numpy as np
 import numpy.typing as npt
 
 __all__ = [
+    "CheckpointError",
     "FempError",
     "OutputError",
     "Scene",
@@ -34,6 +35,7 @@ class SceneError(FempError): ...
 class SimulationError(FempError): ...
 class OutputError(FempError): ...
 class StateError(FempError): ...
+class CheckpointError(FempError): ...
 
 _Path = Union[str, PathLike[str]]
 _F64 = npt.NDArray[np.float64]
@@ -87,7 +89,11 @@ class World:
         overwrite: bool = ...,
         metrics_every: int = ...,
         pictures: bool = ...,
+        checkpoint: bool = ...,
+        resume: bool = ...,
     ) -> None: ...
+    def checkpoint(self, path: _Path) -> None: ...
+    def restore(self, path: _Path) -> None: ...
     def write_frame(self) -> None: ...
     def stop_recording(
         self, error: Optional[str] = ..., interrupted: bool = ...
@@ -149,6 +155,8 @@ def run(
     overwrite: bool = ...,
     progress: bool = ...,
     metrics_every: int = ...,
+    checkpoint: bool = ...,
+    resume: bool = ...,
 ) -> Tuple[str, List[str], List[List[float]]]: ...
 def point_edge_potential(
     p: _F64, e0: _F64, e1: _F64, dhat: float, kappa: float, weight: float = ...,
