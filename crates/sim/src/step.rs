@@ -1005,7 +1005,8 @@ impl<const D: usize> Parts<'_, D> {
 /// `policy.forcing = η > 0` a solve whose operator is still moving is inexact: it stops at
 /// `max(tolerance, η × c)`, `c` the last change of the operator's point (m/s; before the first
 /// solve, from the step's start to Newton's start) — the tail of quadratic convergence is
-/// spent only on the last operator.
+/// spent only on the last operator. A loose solve whose last increment fell below the full
+/// tolerance anyway counts as a full one (no solve again just to confirm it).
 pub(crate) fn friction_loop<const D: usize>(
     newton: &mut femp_solver::Newton,
     obj: &mut StepObjective<'_, D>,
@@ -1042,7 +1043,6 @@ pub(crate) fn friction_loop<const D: usize>(
         obj.lag.limit = obj.lag.count + params.max_iterations / 2;
         solves += 1;
         let tolerance = params.tolerance.max(policy.forcing * moving);
-        let exact = tolerance <= params.tolerance;
         let solve_params = NewtonParams {
             tolerance,
             ..*params
@@ -1058,6 +1058,9 @@ pub(crate) fn friction_loop<const D: usize>(
         report.friction_iterations = obj.lag.count.max(1);
         report.newton_iterations += stats.iterations;
         report.stats += &stats;
+        // A solve asked for a looser tolerance whose last increment is below the full one
+        // (quadratic convergence overshoots) is as converged as one asked for it.
+        let exact = tolerance <= params.tolerance || stats.final_residual < params.tolerance;
         if !policy.any {
             break;
         }

@@ -663,6 +663,72 @@ fn friction_loop_ends_at_its_fixed_point() {
     }
 }
 
+/// With inexact friction solves (`solver.friction_forcing`) a loose solve whose last Newton
+/// increment fell below the full tolerance anyway is as converged as an exact one: a step with
+/// no friction term (the 3D block falling far above the base, Newton started at the predictor,
+/// so the first solve is loose) takes one solve and the same Newton iterations as with every
+/// solve exact — not a second solve to confirm the first.
+#[test]
+fn a_loose_solve_that_ended_below_the_tolerance_is_not_solved_again() {
+    use crate::step::{FrictionPolicy, friction_loop};
+    use femp_solver::{Newton, NewtonParams};
+    let falling = SCENE_3D
+        .replace("[-0.1, -0.1, 0.001]", "[-0.1, -0.1, 0.5]")
+        .replace("[0.1, 0.1, 0.2]", "[0.1, 0.1, 0.7]");
+    let run = |forcing: f64| {
+        let mut w = world::<3>(&falling);
+        let setup = setup_of(&mut w);
+        let params = NewtonParams {
+            tolerance: 1e-6,
+            dt: w.clock.dt,
+            ..Default::default()
+        };
+        let mut obj = objective_of(&setup, &w);
+        let (s, x0) = (&setup, &setup.x0);
+        let mut x = x0.clone();
+        assert!(crate::step::start_at_predictor(
+            &mut obj, x0, &s.fixed, &s.target, &s.x_hat, &mut x
+        ));
+        let mut report = crate::report::StepReport::default();
+        let policy = FrictionPolicy {
+            any: true,
+            max_solves: 20,
+            update_below: 0.0,
+            forcing,
+            extrapolate: false,
+            relax: None,
+            aitken: true,
+        };
+        let problem = (&s.fixed[..], &s.target[..]);
+        friction_loop(
+            &mut Newton::new(),
+            &mut obj,
+            &mut x,
+            x0,
+            problem,
+            &params,
+            policy,
+            &mut report,
+        )
+        .unwrap();
+        assert!(
+            report.friction_converged && obj.lag.terms == 0,
+            "{report:?}"
+        );
+        (report, x)
+    };
+    let (exact, x_exact) = run(0.0);
+    // (Free fall from the predictor: Newton's first increment is small, so a loose
+    // tolerance, η × the 0.2 m/s from the step's start to the predictor, must be smaller
+    // still for the loose solve to take a second iteration — which lands at round-off.)
+    let (loose, x_loose) = run(1e-4);
+    assert_eq!(exact.friction_iterations, 1);
+    assert!(exact.newton_iterations >= 2, "{exact:?}");
+    assert_eq!(loose.friction_iterations, 1, "{loose:?}");
+    assert_eq!(loose.newton_iterations, exact.newton_iterations);
+    assert_eq!(x_loose, x_exact);
+}
+
 /// Aitken's dynamic relaxation ([`crate::step::AitkenRelaxation`]) on linear fixed-point
 /// iterations `y ← A y + b` (the lag at `y`, the solve's answer `A y + b`): where the plain
 /// iteration oscillates and barely contracts (eigenvalues −0.95 and −0.9) or cycles (−1), the

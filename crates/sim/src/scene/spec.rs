@@ -242,7 +242,7 @@ pub struct SolverSpec {
     pub friction_update_below: f64,
     /// The forcing η of inexact friction solves: while the friction operator still moves, a
     /// solve stops at `max(tolerance, η × its last change)` (m/s); the last solve is to the full
-    /// tolerance (0: every solve to the full tolerance).
+    /// tolerance — or ended below it anyway (0: every solve to the full tolerance).
     pub friction_forcing: f64,
     /// Aitken extrapolation of the friction loop: once two solves in a row have shrunk the
     /// operator's change by a steady ratio r < 0.9, the operator is lagged at
