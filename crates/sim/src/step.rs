@@ -363,7 +363,7 @@ impl Bfemp {
             any: any_friction,
             max_solves: max_fric,
             update_below: solver.friction_update_below,
-            forcing: solver.friction_forcing,
+            forcing: solver.forcing(D),
             extrapolate: solver.friction_extrapolation,
             relax: solver.friction_relaxation.then_some(1.0),
             aitken: solver.aitken(),

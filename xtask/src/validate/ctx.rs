@@ -427,11 +427,11 @@ mod tests {
         assert_eq!(twist.solver.projection, ProjectionSpec::WhenIndefinite);
         let s = set.scene("twist", &twist).unwrap();
         assert_eq!(s.spec().solver.projection, ProjectionSpec::Always);
-        assert_eq!(s.spec().solver.friction_forcing, 0.5);
+        assert_eq!(s.spec().solver.friction_forcing, Some(0.5));
         // Everything else as it was.
         let mut back = s.spec().clone();
         back.solver.projection = ProjectionSpec::WhenIndefinite;
-        back.solver.friction_forcing = 0.0;
+        back.solver.friction_forcing = None;
         assert_eq!(
             back.to_json(),
             plain.scene("twist", &twist).unwrap().spec().to_json()

@@ -798,10 +798,12 @@ fn solver(solver: &SolverSpec) -> Result<(), SimError> {
             ),
         ));
     }
-    if !(0.0..1.0).contains(&solver.friction_forcing) {
+    if let Some(forcing) = solver.friction_forcing
+        && !(0.0..1.0).contains(&forcing)
+    {
         return Err(invalid(
             "solver.friction_forcing",
-            format!("{} must be in [0, 1)", solver.friction_forcing),
+            format!("{forcing} must be in [0, 1)"),
         ));
     }
     if solver.friction_aitken == Some(true)
