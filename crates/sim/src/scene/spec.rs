@@ -1188,6 +1188,20 @@ mod tests {
         ));
     }
 
+    /// Inexact friction solves by default in 3D only (η = 0.3), a value set used in either,
+    /// and a scene that leaves the field out writes it out again (its copy in a run's outputs,
+    /// its checkpoints) as absent, not as one dimension's value.
+    #[test]
+    fn friction_forcing_defaults_by_dimension_and_a_set_value_holds() {
+        let forcing = |json: &str, d: usize| read::<SolverSpec>(json).forcing(d);
+        assert_eq!(forcing("{}", 3), 0.3);
+        assert_eq!(forcing("{}", 2), 0.0);
+        assert_eq!(forcing(r#"{"friction_forcing": 0}"#, 3), 0.0);
+        assert_eq!(forcing(r#"{"friction_forcing": 0.5}"#, 2), 0.5);
+        let written = serde_json::to_value(read::<SolverSpec>("{}")).unwrap();
+        assert!(written.get("friction_forcing").is_none(), "{written}");
+    }
+
     /// Each constructor's defaults are those of a scene file that leaves the fields out.
     #[test]
     fn constructors_default_as_a_scene_file_does() {
