@@ -77,22 +77,22 @@ fn py_err(e: SimError) -> PyErr {
         | SimError::TooLarge { .. } => SceneError::new_err(msg),
         SimError::Interrupted { .. } => PyKeyboardInterrupt::new_err(msg),
         SimError::State { .. } => StateError::new_err(msg),
-        SimError::Checkpoint { .. } => CheckpointError::new_err(
-            msg.replace("--checkpoint", "checkpoint=True")
-                .replace("--overwrite", "overwrite=True")
-                .replace("--pictures", "pictures=True"),
-        ),
-        // The program's options, named as the Python calls take them.
+        SimError::Checkpoint { .. } => CheckpointError::new_err(python_options(&msg)),
         SimError::OutputBusy { .. }
         | SimError::StaleOutput { .. }
-        | SimError::OutputLink { .. } => OutputError::new_err(
-            msg.replace("pass --overwrite", "pass overwrite=True")
-                .replace("another --out", "another output directory")
-                .replace("in --out", "in the output directory")
-                .replace("inside --out", "inside the output directory"),
-        ),
+        | SimError::OutputLink { .. } => OutputError::new_err(python_options(&msg)),
         _ => SimulationError::new_err(msg),
     }
+}
+
+/// A message that names the program's options, with them named as the Python calls take them.
+fn python_options(msg: &str) -> String {
+    msg.replace("--overwrite", "overwrite=True")
+        .replace("--checkpoint", "checkpoint=True")
+        .replace("--pictures", "pictures=True")
+        .replace("another --out", "another output directory")
+        .replace("inside --out", "inside the output directory")
+        .replace("in --out", "in the output directory")
 }
 
 fn contact_err(e: ContactError) -> PyErr {
