@@ -363,6 +363,7 @@ impl Bfemp {
             any: any_friction,
             max_solves: max_fric,
             update_below: solver.friction_update_below,
+            update_later: solver.update_later(D),
             forcing: solver.forcing(D),
             extrapolate: solver.friction_extrapolation,
             relax: solver.friction_relaxation.then_some(1.0),
@@ -1042,6 +1043,9 @@ pub(crate) fn friction_loop<const D: usize>(
         // Half a solve's iterations at most update the operator: the rest converge on it.
         obj.lag.limit = obj.lag.count + params.max_iterations / 2;
         solves += 1;
+        if solves > 1 && policy.update_later {
+            obj.lag.begin_later_solve();
+        }
         let tolerance = params.tolerance.max(policy.forcing * moving);
         let solve_params = NewtonParams {
             tolerance,
@@ -1190,6 +1194,9 @@ pub(crate) struct FrictionPolicy {
     pub(crate) max_solves: usize,
     /// `solver.friction_update_below` (m/s).
     pub(crate) update_below: f64,
+    /// `solver.friction_update_later`: the solves after the first update the operator at
+    /// their Newton iterates while that contracts.
+    pub(crate) update_later: bool,
     /// `solver.friction_forcing`.
     pub(crate) forcing: f64,
     /// `solver.friction_extrapolation`.

@@ -106,6 +106,7 @@ class Solver(_Spec):
     pcg_rtol_max: Optional[float] = None
     reuse_hessian_below: Optional[float] = None
     friction_update_below: Optional[float] = None
+    friction_update_later: Optional[bool] = None
     friction_forcing: Optional[float] = None
     friction_extrapolation: Optional[bool] = None
     friction_relaxation: Optional[bool] = None

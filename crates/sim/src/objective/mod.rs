@@ -135,6 +135,42 @@ pub(crate) struct FrictionLag<const D: usize> {
     pub limit: usize,
     /// … and the last iteration's increment ‖p‖∞/Δt (m/s) is below this (0: never).
     pub below: f64,
+    /// In a later solve of the friction loop (`solver.friction_update_later`): the increment
+    /// the last update inside Newton followed, which the next must be below 0.9 of (∞ at the
+    /// solve's start); `None` outside such solves.
+    pub later: Option<f64>,
+    /// Updates inside Newton stopped contracting in this step: later solves keep their lag.
+    pub stalled: bool,
+}
+
+impl<const D: usize> FrictionLag<D> {
+    /// The ratio of successive increments below which updates inside Newton go on.
+    const CONTRACTION: f64 = 0.9;
+
+    /// A later solve of the friction loop begins: its Newton iterations may update the
+    /// operator while that contracts, unless updates stalled earlier in the step.
+    pub fn begin_later_solve(&mut self) {
+        self.later = (!self.stalled).then_some(f64::INFINITY);
+    }
+
+    /// Whether a Newton iteration whose last increment was `residual` (m/s) updates the
+    /// operator: `friction_update_below`'s rule, or in a later solve while each increment
+    /// after an update is below [`Self::CONTRACTION`] of the one before it.
+    fn updates_at(&mut self, residual: f64) -> bool {
+        if self.count == 0 || self.count >= self.limit {
+            return false;
+        }
+        if let Some(last) = self.later {
+            if residual < Self::CONTRACTION * last {
+                self.later = Some(residual);
+                return true;
+            }
+            self.later = None;
+            self.stalled = true;
+            return false;
+        }
+        residual < self.below
+    }
 }
 
 impl<'a, const D: usize> StepObjective<'a, D> {
@@ -386,8 +422,7 @@ impl<const D: usize> Objective for StepObjective<'_, D> {
     }
 
     fn update_lagged(&mut self, x: &[f64], residual: f64) -> bool {
-        let lag = &self.lag;
-        if lag.count == 0 || lag.count >= lag.limit || !(residual < lag.below) || lag.at == x {
+        if self.lag.at == x || !self.lag.updates_at(residual) {
             return false;
         }
         self.lag_friction(x);

@@ -537,14 +537,16 @@ fn contact_only_objective_is_inertia_and_barrier_3d() {
 /// the operator lagged half way from the second solve on (`solver.friction_relaxation`, its
 /// trigger forced: these loops contract), and with Aitken's dynamic relaxation
 /// (`solver.friction_aitken`), and with Newton directions through a stick zone solved with the
-/// stick model (`solver.friction_stick_model`, which must then have been used). Stopping one
+/// stick model (`solver.friction_stick_model`, which must then have been used), and with the
+/// later solves updating the operator at their Newton iterates (`solver.friction_update_later`,
+/// which must then have been used). Stopping one
 /// friction iteration early, ending on an inexact solve or on an extrapolated or relaxed
 /// operator, or measuring the fixed point on grid nodes a particle barely touches, fails it.
 fn check_friction_fixed_point<const D: usize>(
     json: &str,
     below: f64,
     forcing: f64,
-    (extrapolate, relax, aitken, stick): (bool, bool, bool, bool),
+    (extrapolate, relax, aitken, stick, later): (bool, bool, bool, bool, bool),
 ) {
     use crate::step::{FrictionPolicy, friction_loop};
     use femp_solver::{Newton, NewtonParams};
@@ -578,6 +580,7 @@ fn check_friction_fixed_point<const D: usize>(
             any: true,
             max_solves: 100,
             update_below: below,
+            update_later: later,
             forcing,
             extrapolate,
             relax: relax.then_some(0.0),
@@ -601,6 +604,16 @@ fn check_friction_fixed_point<const D: usize>(
         "{D}D: {} operators lagged at an extrapolated point",
         report.extrapolated_lags
     );
+    // (The 3D block's later solves each end after one Newton iteration: there is no second
+    // iterate to update the operator at.)
+    if below == 0.0 && (D == 2 || !later) {
+        assert_eq!(
+            report.stats.lagged_updates > 0,
+            later,
+            "{D}D: {} operators updated inside Newton",
+            report.stats.lagged_updates
+        );
+    }
     if !aitken {
         assert_eq!(
             report.relaxed_lags > 0,
@@ -629,28 +642,31 @@ fn check_friction_fixed_point<const D: usize>(
     let moved = obj.lag_distance(&again) / w.clock.dt;
     assert!(
         moved < 2.0 * tol,
-        "{D}D, update below {below}, forcing {forcing}, extrapolated {extrapolate}, relaxed \
-         {relax}, Aitken {aitken}: a further friction iteration moves a point by {moved:e} m/s"
+        "{D}D, update below {below}, later {later}, forcing {forcing}, extrapolated \
+         {extrapolate}, relaxed {relax}, Aitken {aitken}: a further friction iteration moves a \
+         point by {moved:e} m/s"
     );
 }
 
 #[test]
 fn friction_loop_ends_at_its_fixed_point() {
-    for (below, forcing, extrapolate, relax, aitken, stick) in [
-        (0.0, 0.0, false, false, false, false),
-        (1e-2, 0.0, false, false, false, false),
-        (0.0, 0.1, false, false, false, false),
-        (0.0, 0.5, false, false, false, false),
-        (0.0, 0.0, true, false, false, false),
-        (0.0, 0.5, true, false, false, false),
-        (0.0, 0.0, false, true, false, false),
-        (0.0, 0.5, false, true, false, false),
-        (0.0, 0.0, false, false, true, false),
-        (0.0, 0.5, false, false, true, false),
-        (0.0, 0.0, false, false, false, true),
-        (0.0, 0.0, false, false, true, true),
+    for (below, forcing, extrapolate, relax, aitken, stick, later) in [
+        (0.0, 0.0, false, false, false, false, false),
+        (1e-2, 0.0, false, false, false, false, false),
+        (0.0, 0.1, false, false, false, false, false),
+        (0.0, 0.5, false, false, false, false, false),
+        (0.0, 0.0, true, false, false, false, false),
+        (0.0, 0.5, true, false, false, false, false),
+        (0.0, 0.0, false, true, false, false, false),
+        (0.0, 0.5, false, true, false, false, false),
+        (0.0, 0.0, false, false, true, false, false),
+        (0.0, 0.5, false, false, true, false, false),
+        (0.0, 0.0, false, false, false, true, false),
+        (0.0, 0.0, false, false, true, true, false),
+        (0.0, 0.0, false, false, false, false, true),
+        (0.0, 0.3, false, false, true, true, true),
     ] {
-        let how = (extrapolate, relax, aitken, stick);
+        let how = (extrapolate, relax, aitken, stick, later);
         check_friction_fixed_point::<2>(SCENE_2D, below, forcing, how);
         check_friction_fixed_point::<3>(SCENE_3D, below, forcing, how);
         if stick {
@@ -661,6 +677,54 @@ fn friction_loop_ends_at_its_fixed_point() {
             check_friction_fixed_point::<3>(&stopping, below, forcing, how);
         }
     }
+}
+
+/// Updates of the friction operator inside a later solve's Newton iterations
+/// (`solver.friction_update_later`) go on while each increment is below 0.9 of the one the
+/// last update followed, the first after a solve begins always; the first that is not stops
+/// them for the rest of the step — later solves of the step keep their lag between solves.
+/// Without a later solve begun, `friction_update_below`'s rule holds. Updating on a growing
+/// increment, or again after a stall, fails it.
+#[test]
+fn updates_inside_later_solves_go_on_while_they_contract_and_stop_for_the_step() {
+    use super::FrictionLag;
+    let mut lag = FrictionLag::<3> {
+        count: 1,
+        limit: 100,
+        ..Default::default()
+    };
+    assert!(!lag.updates_at(0.5), "between solves only by default");
+    lag.below = 1.0;
+    assert!(
+        lag.updates_at(0.5) && !lag.updates_at(2.0),
+        "friction_update_below's rule"
+    );
+    lag.below = 0.0;
+    lag.begin_later_solve();
+    assert!(lag.updates_at(5.0), "the first update of a later solve");
+    assert!(lag.updates_at(4.4) && lag.updates_at(1.0) && lag.updates_at(0.89));
+    assert!(!lag.updates_at(0.85), "0.85 is not below 0.9 × 0.89");
+    assert!(
+        lag.stalled && !lag.updates_at(1e-3),
+        "stalled for the rest of the solve"
+    );
+    lag.begin_later_solve();
+    assert!(!lag.updates_at(1e-3), "and for the step's later solves");
+    let mut fresh = FrictionLag::<3> {
+        count: 1,
+        limit: 100,
+        ..Default::default()
+    };
+    fresh.begin_later_solve();
+    assert!(fresh.updates_at(f64::MAX), "any finite increment first");
+    assert!(!fresh.updates_at(f64::NAN), "a NaN increment stops them");
+    fresh.stalled = false;
+    fresh.count = 100;
+    fresh.begin_later_solve();
+    assert!(
+        !fresh.updates_at(1e-9),
+        "not beyond the solve's limit of updates"
+    );
 }
 
 /// With inexact friction solves (`solver.friction_forcing`) a loose solve whose last Newton
@@ -694,6 +758,7 @@ fn a_loose_solve_that_ended_below_the_tolerance_is_not_solved_again() {
             any: true,
             max_solves: 20,
             update_below: 0.0,
+            update_later: false,
             forcing,
             extrapolate: false,
             relax: None,

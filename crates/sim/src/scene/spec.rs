@@ -240,6 +240,14 @@ pub struct SolverSpec {
     /// Newton iterations re-evaluate the lagged friction operator at their iterate once an
     /// increment ‖p‖∞/Δt is below this (m/s; 0: only between solves, Algorithm 1).
     pub friction_update_below: f64,
+    /// Once the friction loop's first solve has converged, its later solves re-evaluate the
+    /// operator at every Newton iterate after their first while that contracts — each
+    /// iteration's increment below 0.9 of the last one's; from the first that is not, this
+    /// step's operator moves only between solves again (where Aitken's relaxation damps a
+    /// loop that oscillates). The loop ends at the same fixed point, to the same tolerance.
+    /// `None`: [`SolverSpec::update_later`].
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub friction_update_later: Option<bool>,
     /// The forcing η of inexact friction solves: while the friction operator still moves, a
     /// solve stops at `max(tolerance, η × its last change)` (m/s); the last solve is to the full
     /// tolerance — or ended below it anyway (0: every solve to the full tolerance). `None`:
@@ -381,6 +389,12 @@ impl SolverSpec {
         })
     }
 
+    /// Whether the friction loop's later solves update the operator inside Newton
+    /// (`friction_update_later`): as set, else in 3D only.
+    pub fn update_later(&self, dimension: usize) -> bool {
+        self.friction_update_later.unwrap_or(dimension == 3)
+    }
+
     /// Whether the friction loop lags with Aitken's dynamic relaxation: as set, else unless
     /// `friction_relaxation` or `friction_extrapolation` is on.
     pub fn aitken(&self) -> bool {
@@ -404,6 +418,7 @@ impl Default for SolverSpec {
             pcg_rtol_max: None,
             reuse_hessian_below: 0.0,
             friction_update_below: 0.0,
+            friction_update_later: None,
             friction_forcing: None,
             friction_extrapolation: false,
             friction_relaxation: false,
@@ -1200,6 +1215,18 @@ mod tests {
         assert_eq!(forcing(r#"{"friction_forcing": 0.5}"#, 2), 0.5);
         let written = serde_json::to_value(read::<SolverSpec>("{}")).unwrap();
         assert!(written.get("friction_forcing").is_none(), "{written}");
+    }
+
+    /// `friction_update_later` left out is on in 3D and off in 2D; a set value holds in
+    /// either, and a default is written as absent (a scene copy says what its file said).
+    #[test]
+    fn friction_update_later_defaults_by_dimension_and_a_set_value_holds() {
+        let later = |json: &str, d: usize| read::<SolverSpec>(json).update_later(d);
+        assert!(later("{}", 3) && !later("{}", 2));
+        assert!(!later(r#"{"friction_update_later": false}"#, 3));
+        assert!(later(r#"{"friction_update_later": true}"#, 2));
+        let written = serde_json::to_value(read::<SolverSpec>("{}")).unwrap();
+        assert!(written.get("friction_update_later").is_none(), "{written}");
     }
 
     /// Each constructor's defaults are those of a scene file that leaves the fields out.
