@@ -43,6 +43,12 @@ pub(crate) struct StateHeader {
     pub dt: f64,
     /// The scene as parsed (JSON).
     pub scene: serde_json::Value,
+    /// The scene's solver settings with what femp chose where it left a choice open
+    /// (`SolverSpec::resolved`): with it, the scenes' `solver` sections are compared as
+    /// resolved, so a default changed since refuses the resumption. Absent in checkpoints
+    /// taken before it was recorded (their scenes are then compared as written).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub solver: Option<serde_json::Value>,
     /// A hash of what the scene built and no step changes: particle masses, volumes, contact
     /// weights and bodies, FEM rest positions and elements (a mesh file edited since shows).
     pub built: u64,
@@ -82,15 +88,16 @@ impl Fnv {
 /// The scene fields a resumed run may change: `time.duration` (a run continued further).
 const MAY_DIFFER: &[&str] = &["time.duration"];
 
-/// The first place where two scenes (as JSON) differ, outside [`MAY_DIFFER`]: its path and
+/// The first place where two scenes (as JSON) differ, outside the paths `skip`: its path and
 /// both values.
 fn first_difference(
     path: &str,
     a: &serde_json::Value,
     b: &serde_json::Value,
+    skip: &[&str],
 ) -> Option<(String, String, String)> {
     use serde_json::Value;
-    if MAY_DIFFER.contains(&path) {
+    if skip.contains(&path) {
         return None;
     }
     let join = |k: &str| {
@@ -106,7 +113,7 @@ fn first_difference(
             keys.sort();
             keys.dedup();
             keys.into_iter().find_map(|k| match (x.get(k), y.get(k)) {
-                (Some(p), Some(q)) => first_difference(&join(k), p, q),
+                (Some(p), Some(q)) => first_difference(&join(k), p, q, skip),
                 (p, q) => Some((
                     join(k),
                     p.map_or("absent".into(), Value::to_string),
@@ -118,7 +125,7 @@ fn first_difference(
             .iter()
             .zip(y)
             .enumerate()
-            .find_map(|(i, (p, q))| first_difference(&format!("{path}[{i}]"), p, q)),
+            .find_map(|(i, (p, q))| first_difference(&format!("{path}[{i}]"), p, q, skip)),
         _ => (a != b).then(|| (path.to_string(), a.to_string(), b.to_string())),
     }
 }
@@ -150,7 +157,59 @@ fn error(message: String) -> SimError {
     }
 }
 
+/// The value at a dotted path (`solver.ordering`) of a scene as JSON, if there is one.
+fn at<'a>(v: &'a serde_json::Value, path: &str) -> Option<&'a serde_json::Value> {
+    path.split('.').try_fold(v, |v, k| v.get(k))
+}
+
+fn shown(v: Option<&serde_json::Value>) -> String {
+    v.map_or("absent".into(), serde_json::Value::to_string)
+}
+
 impl<const D: usize> World<D> {
+    /// Whether this world's scene, `scene` as JSON, is the one the state `h` was taken of, with
+    /// the same settings resolved: an error naming the first difference otherwise. The
+    /// `solver` section is compared as resolved where the state records it, so a value set in
+    /// the scene now that its run had by default is no difference, and a default that changed
+    /// since is one.
+    fn same_settings(&self, h: &StateHeader, scene: &serde_json::Value) -> Result<(), SimError> {
+        let another = |(path, then, now): (String, String, String)| {
+            error(format!(
+                "taken of another scene: `{path}` was {then}, is {now} (only time.duration may \
+                 change between a run and its resumption)"
+            ))
+        };
+        let Some(solver) = &h.solver else {
+            return first_difference("", &h.scene, scene, MAY_DIFFER)
+                .map_or(Ok(()), |d| Err(another(d)));
+        };
+        let skip: Vec<&str> = MAY_DIFFER.iter().copied().chain(["solver"]).collect();
+        if let Some(d) = first_difference("", &h.scene, scene, &skip) {
+            return Err(another(d));
+        }
+        let now = serde_json::to_value(self.scene.spec().solver.resolved(D))
+            .map_err(|e| error(format!("the solver settings as JSON: {e}")))?;
+        let Some((path, then_resolved, now_resolved)) =
+            first_difference("solver", solver, &now, &[])
+        else {
+            return Ok(());
+        };
+        let (written_then, written_now) = (at(&h.scene, &path), at(scene, &path));
+        if written_then != written_now {
+            return Err(another((path, shown(written_then), shown(written_now))));
+        }
+        let field = path.trim_start_matches("solver.");
+        Err(error(format!(
+            "`{path}` is {} in both scenes but resolved to {then_resolved} in the run (femp \
+             {}) and to {now_resolved} by this femp ({}): its default has changed since. Set \
+             `\"{field}\": {then_resolved}` in the scene's `solver` section to continue the run \
+             as it went, or run it again from the start",
+            shown(written_now),
+            h.commit,
+            env!("FEMP_COMMIT"),
+        )))
+    }
+
     /// A hash of what the scene built and no step changes ([`StateHeader::built`]).
     fn built_hash(&self) -> u64 {
         let mut h = Fnv::new();
@@ -218,6 +277,8 @@ impl<const D: usize> World<D> {
         }
         let scene = serde_json::to_value(self.scene.spec())
             .map_err(|e| error(format!("the scene as JSON: {e}")))?;
+        let solver = serde_json::to_value(self.scene.spec().solver.resolved(D))
+            .map_err(|e| error(format!("the solver settings as JSON: {e}")))?;
         Ok(WorldState {
             header: StateHeader {
                 dimension: D,
@@ -225,6 +286,7 @@ impl<const D: usize> World<D> {
                 time: self.clock.time,
                 dt: self.clock.dt,
                 scene,
+                solver: Some(solver),
                 built: self.built_hash(),
                 particles: self.bodies.mpm.as_ref().map_or(0, |m| m.x.len()),
                 fem_vertices: self.bodies.fem.iter().map(|b| b.x.len()).collect(),
@@ -254,12 +316,7 @@ impl<const D: usize> World<D> {
         }
         let scene = serde_json::to_value(self.scene.spec())
             .map_err(|e| error(format!("the scene as JSON: {e}")))?;
-        if let Some((path, then, now)) = first_difference("", &h.scene, &scene) {
-            return Err(error(format!(
-                "taken of another scene: `{path}` was {then}, is {now} (only time.duration \
-                 may change between a run and its resumption)"
-            )));
-        }
+        self.same_settings(h, &scene)?;
         let particles = self.bodies.mpm.as_ref().map_or(0, |m| m.x.len());
         let fem: Vec<usize> = self.bodies.fem.iter().map(|b| b.x.len()).collect();
         if h.particles != particles || h.fem_vertices != fem || h.built != self.built_hash() {
@@ -316,5 +373,82 @@ impl<const D: usize> World<D> {
         self.clock.step = h.step;
         self.clock.time = h.time;
         Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use serde_json::{Value, json};
+
+    use crate::World;
+    use crate::scene;
+
+    /// A 2D MPM block resting on a FEM plate, with the scene's `solver` section `solver`.
+    fn world(solver: Value) -> World<2> {
+        let v = json!({
+            "dimension": 2, "gravity": [0, -9.81],
+            "time": { "dt": 0.01, "duration": 0.1 },
+            "mpm": { "grid_spacing": 0.1 },
+            "bodies": [
+                { "kind": "mpm", "name": "block",
+                  "shape": { "box": { "min": [-0.2, 0.01], "max": [0.2, 0.21] } },
+                  "material": { "E": 1e5, "nu": 0.3, "rho": 1000 } },
+                { "kind": "fem", "name": "plate",
+                  "mesh": { "rectangle": { "min": [-1, -0.1], "max": [1, 0], "cells": [4, 1] } },
+                  "material": { "E": 1e7, "nu": 0.3, "rho": 1000 } }
+            ],
+            "contact": { "dhat": 0.005, "kappa": 1e5, "friction": 0.3 },
+            "solver": solver
+        });
+        let s = scene::parse(&v.to_string(), "b.json", ".".into(), "b").unwrap();
+        World::build(s).unwrap()
+    }
+
+    #[test]
+    fn a_default_changed_since_the_state_was_taken_refuses_it_and_setting_the_old_value_resumes() {
+        let mut state = world(json!({})).state().unwrap();
+        let recorded = state.header.solver.as_mut().unwrap();
+        // Today's 2D resolution, as recorded; the same scene with the same femp resumes.
+        assert_eq!(recorded["friction_update_later"], json!(false));
+        assert_eq!(recorded["friction_forcing"], json!(0.0));
+        assert_eq!(recorded["ordering"], json!("amd"));
+        world(json!({})).restore(&state).unwrap();
+        // Setting in the scene what the run had by default is no difference.
+        world(json!({ "friction_update_later": false, "ordering": "amd" }))
+            .restore(&state)
+            .unwrap();
+        // A state taken by a femp whose 2D default was on.
+        state.header.solver.as_mut().unwrap()["friction_update_later"] = json!(true);
+        let e = world(json!({})).restore(&state).unwrap_err().to_string();
+        assert!(
+            e.contains("`solver.friction_update_later` is absent in both scenes")
+                && e.contains("resolved to true in the run")
+                && e.contains("to false by this femp")
+                && e.contains(r#"Set `"friction_update_later": true`"#),
+            "{e}"
+        );
+        world(json!({ "friction_update_later": true }))
+            .restore(&state)
+            .unwrap();
+        // A value set differently from the run's is another scene, as before.
+        let e = world(json!({ "friction_update_later": true, "tolerance": 1e-5 }))
+            .restore(&state)
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("taken of another scene: `solver.tolerance` was 0.0001, is"),
+            "{e}"
+        );
+        // A state without the record (taken before it was kept) compares the scenes as written.
+        state.header.solver = None;
+        world(json!({})).restore(&state).unwrap();
+        let e = world(json!({ "friction_update_later": true }))
+            .restore(&state)
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("`solver.friction_update_later` was absent, is true"),
+            "{e}"
+        );
     }
 }

@@ -553,11 +553,10 @@ pub(crate) fn newton_params<const D: usize>(solver: &SolverSpec, dt: f64) -> New
         tolerance: solver.tolerance,
         dt,
         max_iterations: solver.max_newton_iterations,
-        ordering: match solver.ordering {
-            // Measured (docs/performance.md, `cargo xtask bench`): nested dissection as fast
-            // as AMD at the twist's 5k 3D unknowns, 1.6× faster per contact step at
-            // block_on_plate_3d's 26k.
-            OrderingSpec::Auto if D == 3 => Ordering::NestedDissection { block: D },
+        // Auto, measured (docs/performance.md, `cargo xtask bench`): nested dissection as
+        // fast as AMD at the twist's 5k 3D unknowns, 1.6× faster per contact step at
+        // block_on_plate_3d's 26k.
+        ordering: match solver.ordering_in(D) {
             OrderingSpec::Auto | OrderingSpec::Amd => Ordering::Amd,
             OrderingSpec::NestedDissection => Ordering::NestedDissection { block: D },
         },

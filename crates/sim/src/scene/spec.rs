@@ -401,6 +401,32 @@ impl SolverSpec {
         self.friction_aitken
             .unwrap_or(!(self.friction_relaxation || self.friction_extrapolation))
     }
+
+    /// The fill-reducing ordering in a `dimension`-D scene: as set, else nested dissection in
+    /// 3D and AMD in 2D (measured: docs/performance.md).
+    pub fn ordering_in(&self, dimension: usize) -> OrderingSpec {
+        match self.ordering {
+            OrderingSpec::Auto if dimension == 3 => OrderingSpec::NestedDissection,
+            OrderingSpec::Auto => OrderingSpec::Amd,
+            set => set,
+        }
+    }
+
+    /// These settings with every choice femp makes where the scene leaves one open filled in
+    /// for a `dimension`-D scene (`friction_forcing`, `friction_update_later`,
+    /// `friction_aitken`, `ordering`): what a run actually used. A checkpoint records it, so a
+    /// femp whose defaults have changed since refuses to continue the run under other settings
+    /// (`World::restore`). `linear` and `factor_precision` stay `auto`: they choose per system
+    /// as it comes.
+    pub fn resolved(&self, dimension: usize) -> SolverSpec {
+        SolverSpec {
+            friction_forcing: Some(self.forcing(dimension)),
+            friction_update_later: Some(self.update_later(dimension)),
+            friction_aitken: Some(self.aitken()),
+            ordering: self.ordering_in(dimension),
+            ..self.clone()
+        }
+    }
 }
 
 impl Default for SolverSpec {
