@@ -68,6 +68,11 @@ enum Command {
         /// checkpoints if --checkpoint is given too.
         #[arg(long, conflicts_with_all = ["overwrite", "pictures"])]
         resume: bool,
+        /// With --resume: the scene's solver section may differ from the checkpoint's — the
+        /// run goes on as a branch under other solver settings (copy DIR first to keep the
+        /// run itself); summary.json's warnings name the first difference.
+        #[arg(long, requires = "resume")]
+        branch: bool,
         /// Write metrics and the summary only, no frames.
         #[arg(long)]
         no_frames: bool,
@@ -234,6 +239,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             max_steps,
             checkpoint,
             resume,
+            branch,
             no_frames,
             metrics_every,
             quiet,
@@ -271,6 +277,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                 metrics_every: metrics_every as usize,
                 checkpoint,
                 resume,
+                branch,
                 command: std::env::args().collect(),
                 pictures: pictures.then(|| femp::render::PictureOptions {
                     key_frames: key_frames.into(),

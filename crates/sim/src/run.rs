@@ -60,6 +60,11 @@ pub struct RunOptions {
     /// scene must be the checkpoint's but for `time.duration` (a run may be continued further).
     /// Not with `overwrite` or `pictures`.
     pub resume: bool,
+    /// With `resume`: the scene's `solver` section may differ from the checkpoint's — the run
+    /// goes on as a branch under other solver settings ([`World::restore_branch`]; its steps
+    /// after the checkpoint are not bit for bit the run's even with the same settings), and
+    /// the summary's warnings say so, with the first difference.
+    pub branch: bool,
 }
 
 /// Everything a finished run measured, for callers that use femp as a library.
@@ -262,7 +267,12 @@ impl Recorder {
             ));
         }
         let checkpoint = Checkpoint::read(&path)?;
-        world.restore(&checkpoint.world)?;
+        let branched = if opts.branch {
+            Some(world.restore_branch(&checkpoint.world)?)
+        } else {
+            world.restore(&checkpoint.world)?;
+            None
+        };
         let state: RunState = serde_json::from_value(checkpoint.run)
             .map_err(|e| refuse(&format!("its run state: {e}")))?;
         let out = Output::reopen(out_dir, world, world.clock.step, &state.frame_times)?;
@@ -283,6 +293,20 @@ impl Recorder {
         summary.error = None;
         summary.resumed_at.push(world.clock.step);
         summary.command = opts.command.clone();
+        if let Some(changed) = branched {
+            summary.warnings.push(format!(
+                "branched at step {} under {}: the steps after it are not the run's \
+                 continuation",
+                world.clock.step,
+                match changed {
+                    Some((path, then, now)) => format!(
+                        "other solver settings (the first difference: `{path}` was {then}, is \
+                         {now})"
+                    ),
+                    None => "the same solver settings, the solvers' analyses afresh".into(),
+                }
+            ));
+        }
         let commit = env!("FEMP_COMMIT");
         if summary.commit != commit {
             summary.warnings.push(format!(

@@ -194,20 +194,73 @@ impl<const D: usize> World<D> {
         else {
             return Ok(());
         };
-        let (written_then, written_now) = (at(&h.scene, &path), at(scene, &path));
-        if written_then != written_now {
-            return Err(another((path, shown(written_then), shown(written_now))));
+        let (set_then, set_now) = (at(&h.scene, &path), at(scene, &path));
+        if set_then != set_now {
+            return Err(another((path, shown(set_then), shown(set_now))));
         }
+        // Whether this femp resolves the run's own `solver` section as the run's femp did: if
+        // so, the scenes' sections differ (a set value the resolution follows); if not, a
+        // default has changed.
+        let null = serde_json::Value::Null;
+        let written_then = h.scene.get("solver").unwrap_or(&null);
+        let run_now = serde_json::from_value::<crate::scene::SolverSpec>(written_then.clone())
+            .ok()
+            .and_then(|spec| serde_json::to_value(spec.resolved(D)).ok());
+        let changed_default = run_now
+            .as_ref()
+            .and_then(|r| first_difference("solver", solver, r, &[]));
+        let Some((path, then_resolved, now_resolved)) = changed_default else {
+            let raw = first_difference(
+                "solver",
+                written_then,
+                scene.get("solver").unwrap_or(&null),
+                &[],
+            );
+            return Err(another(raw.unwrap_or((path, then_resolved, now_resolved))));
+        };
         let field = path.trim_start_matches("solver.");
         Err(error(format!(
-            "`{path}` is {} in both scenes but resolved to {then_resolved} in the run (femp \
-             {}) and to {now_resolved} by this femp ({}): its default has changed since. Set \
-             `\"{field}\": {then_resolved}` in the scene's `solver` section to continue the run \
-             as it went, or run it again from the start",
-            shown(written_now),
+            "`{path}` is {} in the run's scene; it resolved to {then_resolved} in the run \
+             (femp {}) and resolves to {now_resolved} in this femp ({}): its default has \
+             changed since. Set `\"{field}\": {then_resolved}` in the scene's `solver` section \
+             to continue the run as it went, or run it again from the start",
+            shown(at(&h.scene, &path)),
             h.commit,
             env!("FEMP_COMMIT"),
         )))
+    }
+
+    /// For a branch: the scenes compared but for their `solver` sections, and the first
+    /// difference of those as written — or, where they are the same, as resolved (a default
+    /// changed since).
+    fn solver_difference(
+        &self,
+        h: &StateHeader,
+        scene: &serde_json::Value,
+    ) -> Result<Option<(String, String, String)>, SimError> {
+        let skip: Vec<&str> = MAY_DIFFER.iter().copied().chain(["solver"]).collect();
+        if let Some((path, then, now)) = first_difference("", &h.scene, scene, &skip) {
+            return Err(error(format!(
+                "taken of another scene: `{path}` was {then}, is {now} (a branch may change \
+                 the `solver` section and time.duration only)"
+            )));
+        }
+        let null = serde_json::Value::Null;
+        let raw = first_difference(
+            "solver",
+            h.scene.get("solver").unwrap_or(&null),
+            scene.get("solver").unwrap_or(&null),
+            &[],
+        );
+        if raw.is_some() {
+            return Ok(raw);
+        }
+        // The same section as written: a default changed since shows as resolved.
+        let now = serde_json::to_value(self.scene.spec().solver.resolved(D))
+            .map_err(|e| error(format!("the solver settings as JSON: {e}")))?;
+        Ok(h.solver
+            .as_ref()
+            .and_then(|then| first_difference("solver", then, &now, &[])))
     }
 
     /// A hash of what the scene built and no step changes ([`StateHeader::built`]).
@@ -307,6 +360,27 @@ impl<const D: usize> World<D> {
     /// bodies (a mesh file edited since) or a malformed state is an error saying which, and
     /// leaves the bodies and the clock as they were.
     pub fn restore(&mut self, state: &WorldState) -> Result<(), SimError> {
+        self.restore_with(state, false).map(|_| ())
+    }
+
+    /// [`Self::restore`] with the scene's `solver` section free to differ from the one `state`
+    /// was taken under: the world continues as a branch of the run under other solver
+    /// settings — to compare them from the same state, e.g. on a step that was hard. The
+    /// solvers' analysed patterns are then not restored (they start afresh, as a new run's),
+    /// so even with the same settings the steps after it match the run's to the solver
+    /// tolerance, not bit for bit. The first difference of the resolved settings, if any.
+    pub fn restore_branch(
+        &mut self,
+        state: &WorldState,
+    ) -> Result<Option<(String, String, String)>, SimError> {
+        self.restore_with(state, true)
+    }
+
+    fn restore_with(
+        &mut self,
+        state: &WorldState,
+        branch: bool,
+    ) -> Result<Option<(String, String, String)>, SimError> {
         let h = &state.header;
         if h.dimension != D {
             return Err(error(format!(
@@ -316,7 +390,12 @@ impl<const D: usize> World<D> {
         }
         let scene = serde_json::to_value(self.scene.spec())
             .map_err(|e| error(format!("the scene as JSON: {e}")))?;
-        self.same_settings(h, &scene)?;
+        let changed = if branch {
+            self.solver_difference(h, &scene)?
+        } else {
+            self.same_settings(h, &scene)?;
+            None
+        };
         let particles = self.bodies.mpm.as_ref().map_or(0, |m| m.x.len());
         let fem: Vec<usize> = self.bodies.fem.iter().map(|b| b.x.len()).collect();
         if h.particles != particles || h.fem_vertices != fem || h.built != self.built_hash() {
@@ -350,7 +429,7 @@ impl<const D: usize> World<D> {
             .into_iter()
             .zip(&state.patterns)
         {
-            if let Some(p) = pattern {
+            if let Some(p) = pattern.as_ref().filter(|_| !branch) {
                 newton
                     .restore_analysis(&params, p)
                     .map_err(|e| error(e.to_string()))?;
@@ -372,7 +451,7 @@ impl<const D: usize> World<D> {
         }
         self.clock.step = h.step;
         self.clock.time = h.time;
-        Ok(())
+        Ok(changed)
     }
 }
 
@@ -421,9 +500,9 @@ mod tests {
         state.header.solver.as_mut().unwrap()["friction_update_later"] = json!(true);
         let e = world(json!({})).restore(&state).unwrap_err().to_string();
         assert!(
-            e.contains("`solver.friction_update_later` is absent in both scenes")
+            e.contains("`solver.friction_update_later` is absent in the run's scene")
                 && e.contains("resolved to true in the run")
-                && e.contains("to false by this femp")
+                && e.contains("resolves to false in this femp")
                 && e.contains(r#"Set `"friction_update_later": true`"#),
             "{e}"
         );

@@ -367,7 +367,8 @@ impl Bfemp {
             forcing: solver.forcing(D),
             extrapolate: solver.friction_extrapolation,
             relax: solver.friction_relaxation.then_some(1.0),
-            aitken: solver.aitken(),
+            aitken: solver.aitken(D),
+            anderson: solver.anderson(D),
         };
         let (step, time) = (clock.step, clock.time);
         let failed = |(e, j): (femp_solver::SolveError, usize)| match e {
@@ -1038,6 +1039,7 @@ pub(crate) fn friction_loop<const D: usize>(
     let mut last_change: Option<f64> = None;
     let mut relaxing = false;
     let mut aitken = AitkenRelaxation::default();
+    let mut anderson = AndersonMixing::new(policy.anderson);
     loop {
         // Half a solve's iterations at most update the operator: the rest converge on it.
         obj.lag.limit = obj.lag.count + params.max_iterations / 2;
@@ -1069,7 +1071,13 @@ pub(crate) fn friction_loop<const D: usize>(
         }
         // With Aitken's relaxation the residual it needs gives the change too (one unpacking
         // of `x`): its largest coordinate is `lag_distance`.
-        let change = if policy.aitken {
+        let change = if policy.anderson > 0 {
+            obj.lag_residual(x, &mut anderson.current);
+            anderson
+                .current
+                .iter()
+                .fold(0.0, |m: f64, d| m.max(d.abs()))
+        } else if policy.aitken {
             obj.lag_residual(x, &mut aitken.current);
             aitken.current.iter().fold(0.0, |m: f64, d| m.max(d.abs()))
         } else {
@@ -1090,7 +1098,14 @@ pub(crate) fn friction_loop<const D: usize>(
             .is_some_and(|ratio| last_change.is_some_and(|p| change >= ratio * p));
         last_change = Some(change);
         let previous = plain_change.filter(|_| policy.extrapolate && !relaxing);
-        if policy.aitken {
+        if policy.anderson > 0 {
+            if anderson.next_point(x, &mut lag_point) && lag_at(obj, x, &mut lag_point) {
+                report.relaxed_lags += 1;
+            } else {
+                anderson.restart();
+                obj.lag_friction(x);
+            }
+        } else if policy.aitken {
             let omega = aitken.next_factor();
             let relaxed = omega < 1.0 && lag_along(obj, x, omega - 1.0, &mut lag_point);
             if relaxed {
@@ -1184,6 +1199,27 @@ fn lag_along<const D: usize>(
     true
 }
 
+/// Lag the friction operator at `y` (in `lag_point`) if the straight path from `x` to it is
+/// feasible (`lag_point` then first holds the step `y − x`).
+fn lag_at<const D: usize>(
+    obj: &mut StepObjective<'_, D>,
+    x: &[f64],
+    lag_point: &mut [f64],
+) -> bool {
+    for (y, a) in lag_point.iter_mut().zip(x) {
+        *y -= a;
+    }
+    let bound = femp_solver::Objective::max_step(obj, x, lag_point);
+    for (y, a) in lag_point.iter_mut().zip(x) {
+        *y += a;
+    }
+    if bound.limit.is_some() || bound.alpha < 1.0 {
+        return false;
+    }
+    obj.lag_friction(lag_point);
+    true
+}
+
 /// How a step's lagged-friction loop runs ([`friction_loop`]).
 #[derive(Clone, Copy, Debug)]
 pub(crate) struct FrictionPolicy {
@@ -1205,6 +1241,120 @@ pub(crate) struct FrictionPolicy {
     pub(crate) relax: Option<f64>,
     /// `solver.friction_aitken`: Aitken's dynamic relaxation of every lag after the first.
     pub(crate) aitken: bool,
+    /// `solver.friction_anderson`: Anderson acceleration with this many past iterates (0:
+    /// off; on, it chooses the lags instead of Aitken).
+    pub(crate) anderson: usize,
+}
+
+/// Anderson acceleration of a fixed-point iteration `at ↦ g(at)` (Anderson 1965; Walker & Ni
+/// 2011, "type II", mixing β = 1), for the friction loop: `at` the point the operator was
+/// lagged at, `g` the solve's solution, `f = P(g − at)` the residual on the points the operator
+/// depends on (`P` linear: particles and vertices are linear in the unknowns). With the
+/// differences `ΔG`, `ΔF` of the last `m` pairs, the next lag is at `g − ΔG γ`, `γ` the least-
+/// squares minimiser of `‖f − ΔF γ‖₂` — for a linear map, where the residual vanishes on the
+/// span of the last `m` steps. A mixed lag whose residual is larger than the one before it
+/// empties the history (the next lag plain).
+#[derive(Debug)]
+pub(crate) struct AndersonMixing {
+    depth: usize,
+    /// The last solve's solution and residual.
+    last_g: Vec<f64>,
+    last_f: Vec<f64>,
+    have_last: bool,
+    /// Whether the last lag was mixed (not plain).
+    mixed: bool,
+    /// The last `depth` differences of solutions (unknowns) and residuals (points), oldest
+    /// first.
+    dg: std::collections::VecDeque<Vec<f64>>,
+    df: std::collections::VecDeque<Vec<f64>>,
+    /// The current residual, filled by the caller before [`Self::next_point`].
+    pub(crate) current: Vec<f64>,
+}
+
+impl AndersonMixing {
+    pub(crate) fn new(depth: usize) -> Self {
+        Self {
+            depth,
+            last_g: Vec::new(),
+            last_f: Vec::new(),
+            have_last: false,
+            mixed: false,
+            dg: Default::default(),
+            df: Default::default(),
+            current: Vec::new(),
+        }
+    }
+
+    /// Forget the differences (the next lag plain, the one after mixes again).
+    pub(crate) fn restart(&mut self) {
+        self.dg.clear();
+        self.df.clear();
+        self.mixed = false;
+    }
+
+    /// With `current` the residual of the solve that ended at `g`: the next lag point into
+    /// `out` and `true`, or `false` where there is no history to mix (the lag is then `g`).
+    pub(crate) fn next_point(&mut self, g: &[f64], out: &mut Vec<f64>) -> bool {
+        if self.depth == 0 {
+            return false;
+        }
+        let norm = |v: &[f64]| v.iter().map(|a| a * a).sum::<f64>();
+        if self.have_last {
+            if self.mixed && norm(&self.current) >= norm(&self.last_f) {
+                // The mixed lag did worse than the plain one before it would have had to.
+                self.restart();
+            } else {
+                let mut dg = if self.dg.len() == self.depth {
+                    self.df.pop_front();
+                    self.dg.pop_front().expect("a full history")
+                } else {
+                    Vec::new()
+                };
+                dg.clear();
+                dg.extend(g.iter().zip(&self.last_g).map(|(a, b)| a - b));
+                let df = self
+                    .current
+                    .iter()
+                    .zip(&self.last_f)
+                    .map(|(a, b)| a - b)
+                    .collect();
+                self.dg.push_back(dg);
+                self.df.push_back(df);
+            }
+        }
+        self.last_g.clear();
+        self.last_g.extend_from_slice(g);
+        self.last_f.clone_from(&self.current);
+        self.have_last = true;
+        let m = self.df.len();
+        self.mixed = m > 0;
+        if m == 0 {
+            return false;
+        }
+        // The normal equations, solved through the SVD with small singular values cut (nearly
+        // dependent columns).
+        let dot = |a: &[f64], b: &[f64]| a.iter().zip(b).map(|(x, y)| x * y).sum::<f64>();
+        let gram = nalgebra::DMatrix::from_fn(m, m, |i, j| dot(&self.df[i], &self.df[j]));
+        let rhs = nalgebra::DVector::from_fn(m, |i, _| dot(&self.df[i], &self.current));
+        let svd = gram.svd(true, true);
+        let cut = 1e-12 * svd.singular_values.max();
+        let Ok(gamma) = svd.solve(&rhs, cut) else {
+            self.restart();
+            return false;
+        };
+        if !gamma.iter().all(|v| v.is_finite()) {
+            self.restart();
+            return false;
+        }
+        out.clear();
+        out.extend_from_slice(g);
+        for (j, dg) in self.dg.iter().enumerate() {
+            for (o, d) in out.iter_mut().zip(dg) {
+                *o -= gamma[j] * d;
+            }
+        }
+        true
+    }
 }
 
 /// Aitken's dynamic relaxation of a fixed-point iteration (Irons & Tuck 1969; as Küttler & Wall

@@ -111,6 +111,7 @@ class Solver(_Spec):
     friction_extrapolation: Optional[bool] = None
     friction_relaxation: Optional[bool] = None
     friction_aitken: Optional[bool] = None
+    friction_anderson: Optional[int] = None
     friction_stick_model: Optional[bool] = None
     line_search_expansion: Optional[float] = None
     newton_test: Optional[str] = None

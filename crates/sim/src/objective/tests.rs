@@ -547,6 +547,7 @@ fn check_friction_fixed_point<const D: usize>(
     below: f64,
     forcing: f64,
     (extrapolate, relax, aitken, stick, later): (bool, bool, bool, bool, bool),
+    anderson: usize,
 ) {
     use crate::step::{FrictionPolicy, friction_loop};
     use femp_solver::{Newton, NewtonParams};
@@ -585,6 +586,7 @@ fn check_friction_fixed_point<const D: usize>(
             extrapolate,
             relax: relax.then_some(0.0),
             aitken,
+            anderson,
         },
         &mut report,
     )
@@ -614,7 +616,12 @@ fn check_friction_fixed_point<const D: usize>(
             report.stats.lagged_updates
         );
     }
-    if !aitken {
+    if anderson > 0 {
+        assert!(
+            report.relaxed_lags > 0,
+            "{D}D: no operator lagged at an Anderson-mixed point"
+        );
+    } else if !aitken {
         assert_eq!(
             report.relaxed_lags > 0,
             relax,
@@ -643,38 +650,40 @@ fn check_friction_fixed_point<const D: usize>(
     assert!(
         moved < 2.0 * tol,
         "{D}D, update below {below}, later {later}, forcing {forcing}, extrapolated \
-         {extrapolate}, relaxed {relax}, Aitken {aitken}: a further friction iteration moves a \
+         {extrapolate}, relaxed {relax}, Aitken {aitken}, Anderson {anderson}: a further friction iteration moves a \
          point by {moved:e} m/s"
     );
 }
 
 #[test]
 fn friction_loop_ends_at_its_fixed_point() {
-    for (below, forcing, extrapolate, relax, aitken, stick, later) in [
-        (0.0, 0.0, false, false, false, false, false),
-        (1e-2, 0.0, false, false, false, false, false),
-        (0.0, 0.1, false, false, false, false, false),
-        (0.0, 0.5, false, false, false, false, false),
-        (0.0, 0.0, true, false, false, false, false),
-        (0.0, 0.5, true, false, false, false, false),
-        (0.0, 0.0, false, true, false, false, false),
-        (0.0, 0.5, false, true, false, false, false),
-        (0.0, 0.0, false, false, true, false, false),
-        (0.0, 0.5, false, false, true, false, false),
-        (0.0, 0.0, false, false, false, true, false),
-        (0.0, 0.0, false, false, true, true, false),
-        (0.0, 0.0, false, false, false, false, true),
-        (0.0, 0.3, false, false, true, true, true),
+    for (below, forcing, extrapolate, relax, aitken, stick, later, anderson) in [
+        (0.0, 0.0, false, false, false, false, false, 0),
+        (1e-2, 0.0, false, false, false, false, false, 0),
+        (0.0, 0.1, false, false, false, false, false, 0),
+        (0.0, 0.5, false, false, false, false, false, 0),
+        (0.0, 0.0, true, false, false, false, false, 0),
+        (0.0, 0.5, true, false, false, false, false, 0),
+        (0.0, 0.0, false, true, false, false, false, 0),
+        (0.0, 0.5, false, true, false, false, false, 0),
+        (0.0, 0.0, false, false, true, false, false, 0),
+        (0.0, 0.5, false, false, true, false, false, 0),
+        (0.0, 0.0, false, false, false, true, false, 0),
+        (0.0, 0.0, false, false, true, true, false, 0),
+        (0.0, 0.0, false, false, false, false, true, 0),
+        (0.0, 0.3, false, false, true, true, true, 0),
+        (0.0, 0.0, false, false, false, false, false, 3),
+        (0.0, 0.3, false, false, false, true, true, 3),
     ] {
         let how = (extrapolate, relax, aitken, stick, later);
-        check_friction_fixed_point::<2>(SCENE_2D, below, forcing, how);
-        check_friction_fixed_point::<3>(SCENE_3D, below, forcing, how);
+        check_friction_fixed_point::<2>(SCENE_2D, below, forcing, how, anderson);
+        check_friction_fixed_point::<3>(SCENE_3D, below, forcing, how, anderson);
         if stick {
             // The 3D block slowed to a stop within the step (friction's μ g Δt is 0.04 m/s):
             // its particles stick, and the solve that starts at the predictor carries them
             // through their stick zones.
             let stopping = SCENE_3D.replace("[0.5, 0, -0.2]", "[0.02, 0, -0.2]");
-            check_friction_fixed_point::<3>(&stopping, below, forcing, how);
+            check_friction_fixed_point::<3>(&stopping, below, forcing, how, anderson);
         }
     }
 }
@@ -763,6 +772,7 @@ fn a_loose_solve_that_ended_below_the_tolerance_is_not_solved_again() {
             extrapolate: false,
             relax: None,
             aitken: true,
+            anderson: 0,
         };
         let problem = (&s.fixed[..], &s.target[..]);
         friction_loop(
@@ -932,4 +942,58 @@ fn increment_size_on_points() {
         .map(|k| if k == 2 * n_grid + 1 { d } else { 0.0 })
         .collect();
     assert_eq!(obj.increment_size(&x, &vertex), Some(d));
+}
+
+/// Anderson acceleration on linear fixed-point maps `g(x) = A x + b` (residual on the points =
+/// on the unknowns here): with `m` ≥ the dimension it is GMRES in disguise and reaches the
+/// fixed point in a few iterations — also where the plain iteration cycles (eigenvalue −1),
+/// diverges (|λ| > 1, a rotation) or creeps (λ = 0.99); and it is the plain iteration while it
+/// has no history.
+#[test]
+fn anderson_mixing_solves_linear_fixed_point_loops_the_plain_iteration_does_not() {
+    use crate::step::AndersonMixing;
+    let run = |a: [[f64; 3]; 3], depth: usize, max: usize| -> Option<usize> {
+        let b = [1.0, -2.0, 0.5];
+        let g = |x: &[f64]| -> Vec<f64> {
+            (0..3)
+                .map(|i| (0..3).map(|j| a[i][j] * x[j]).sum::<f64>() + b[i])
+                .collect()
+        };
+        let mut mix = AndersonMixing::new(depth);
+        let mut at = vec![0.0; 3];
+        let mut next = Vec::new();
+        for k in 1..=max {
+            let x = g(&at);
+            mix.current.clear();
+            mix.current.extend(x.iter().zip(&at).map(|(p, q)| p - q));
+            if mix.current.iter().all(|d| d.abs() < 1e-10) {
+                return Some(k);
+            }
+            if depth > 0 && mix.next_point(&x, &mut next) {
+                at.clone_from(&next);
+            } else {
+                assert!(depth == 0 || k == 1, "no mixing after the first iterate");
+                at = x;
+            }
+        }
+        None
+    };
+    let diag = |d: [f64; 3]| [[d[0], 0.0, 0.0], [0.0, d[1], 0.0], [0.0, 0.0, d[2]]];
+    let (c, s) = (0.6f64.cos() * 1.2, 0.6f64.sin() * 1.2);
+    let cases = [
+        ("two-cycle", diag([-1.0, -0.9, 0.3])),
+        ("diverging", diag([-1.5, 0.5, 0.2])),
+        ("creeping", diag([0.99, 0.98, -0.5])),
+        ("rotation", [[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, -0.8]]),
+        (
+            "coupled",
+            [[0.2, 0.9, 0.0], [-0.9, 0.1, 0.3], [0.0, 0.4, -0.95]],
+        ),
+    ];
+    for (name, a) in cases {
+        let k = run(a, 3, 12);
+        assert!(k.is_some_and(|k| k <= 6), "{name}: {k:?}");
+        // The plain iteration does not get there in as many.
+        assert!(run(a, 0, 12).is_none(), "{name}: plain converged");
+    }
 }

@@ -806,6 +806,29 @@ fn solver(solver: &SolverSpec) -> Result<(), SimError> {
             format!("{forcing} must be in [0, 1)"),
         ));
     }
+    if let Some(m) = solver.friction_anderson {
+        if m > SolverSpec::ANDERSON_MAX {
+            return Err(invalid(
+                "solver.friction_anderson",
+                format!(
+                    "{m} past iterates: at most {} (0 turns it off)",
+                    SolverSpec::ANDERSON_MAX
+                ),
+            ));
+        }
+        if m > 0
+            && (solver.friction_aitken == Some(true)
+                || solver.friction_relaxation
+                || solver.friction_extrapolation)
+        {
+            return Err(invalid(
+                "solver.friction_anderson",
+                "chooses where each friction operator is lagged, as friction_aitken, \
+                 friction_relaxation and friction_extrapolation do: set only one of them"
+                    .to_string(),
+            ));
+        }
+    }
     if solver.friction_aitken == Some(true)
         && (solver.friction_relaxation || solver.friction_extrapolation)
     {

@@ -183,6 +183,15 @@ fn non_physical_values_are_named() {
     expect_error(&v, &["solver.friction_aitken", "set only one of them"]);
     v["solver"] = json!({ "friction_aitken": true, "friction_extrapolation": true });
     expect_error(&v, &["solver.friction_aitken", "set only one of them"]);
+    v["solver"] = json!({ "friction_anderson": 3, "friction_aitken": true });
+    expect_error(&v, &["solver.friction_anderson", "set only one of them"]);
+    v["solver"] = json!({ "friction_anderson": 2, "friction_relaxation": true });
+    expect_error(&v, &["solver.friction_anderson", "set only one of them"]);
+    v["solver"] = json!({ "friction_anderson": 17 });
+    expect_error(
+        &v,
+        &["solver.friction_anderson", "17 past iterates: at most 16"],
+    );
     // Either alone is accepted (Aitken's relaxation, the default, is then off).
     for other in ["friction_relaxation", "friction_extrapolation"] {
         let mut w = v.clone();

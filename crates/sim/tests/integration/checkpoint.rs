@@ -315,3 +315,106 @@ fn what_cannot_be_resumed_is_refused_with_what_is_wrong() {
     assert!(e.contains("BFEMP"), "{e}");
     assert!(!out2.join("metrics.csv").exists());
 }
+
+/// `--resume --branch` continues a run's checkpoint under other solver settings (to compare
+/// them from one state): the summary says it branched, with the first difference; without
+/// `--branch` the same scene is refused, and a branch may not change anything outside
+/// `solver` (and `time.duration`). With the same settings a branch ends where the run did
+/// to the solver tolerance.
+#[test]
+fn a_branch_resumes_a_checkpoint_under_other_solver_settings_and_says_so() {
+    let dir = tempfile::tempdir().unwrap();
+    let base = block(0.1, "backward_euler");
+    let with = |edit: &dyn Fn(&mut Value)| {
+        let mut v = base.clone();
+        edit(&mut v);
+        v
+    };
+    let full = scene_file(dir.path(), "full.json", &base);
+    let other = scene_file(
+        dir.path(),
+        "other.json",
+        &with(&|v| v["solver"] = json!({ "friction_anderson": 3, "tolerance": 1e-5 })),
+    );
+    let contact = scene_file(
+        dir.path(),
+        "contact.json",
+        &with(&|v| v["contact"]["friction"] = json!(0.5)),
+    );
+    let (a, b) = (dir.path().join("a"), dir.path().join("b"));
+    let run = |scene: &str, out: &Path, extra: &[&str]| {
+        let mut args = vec![
+            "run",
+            scene,
+            "--out",
+            out.to_str().unwrap(),
+            "-q",
+            "--no-frames",
+        ];
+        args.extend_from_slice(extra);
+        femp(&args)
+    };
+    ok(&run(&full, &a, &["--checkpoint", "--max-steps", "4"]));
+    std::fs::create_dir_all(&b).unwrap();
+    for f in [
+        "checkpoint.femp",
+        "metrics.csv",
+        "summary.json",
+        "scene_copy.json",
+    ] {
+        std::fs::copy(a.join(f), b.join(f)).unwrap();
+    }
+    let refused = |r: Output, what: &str| {
+        assert!(!r.status.success());
+        let e = String::from_utf8_lossy(&r.stderr).into_owned();
+        assert!(e.contains(what), "{e}");
+    };
+    refused(
+        run(&other, &b, &["--resume"]),
+        "`solver.friction_anderson` was absent, is 3",
+    );
+    refused(
+        run(&contact, &b, &["--resume", "--branch"]),
+        "`contact.friction` was 0.3, is 0.5 (a branch may change the `solver` section",
+    );
+    refused(run(&other, &b, &["--branch"]), "--resume");
+    ok(&run(&other, &b, &["--resume", "--branch"]));
+    let s = summary(&b);
+    assert_eq!(s["status"], "completed");
+    assert_eq!(s["steps"], 10);
+    let warnings = s["warnings"].to_string();
+    assert!(
+        warnings.contains("branched at step 4 under other solver settings")
+            && warnings.contains("`solver.friction_anderson` was absent, is 3"),
+        "{warnings}"
+    );
+    // The run itself, continued plainly, and a branch of it with the same settings.
+    ok(&run(&full, &a, &["--resume"]));
+    let c = dir.path().join("c");
+    std::fs::create_dir_all(&c).unwrap();
+    ok(&run(&full, &c, &["--checkpoint", "--max-steps", "4"]));
+    ok(&run(&full, &c, &["--resume", "--branch"]));
+    let warnings = summary(&c)["warnings"].to_string();
+    assert!(warnings.contains("the same solver settings"), "{warnings}");
+    let last = |d: &Path| -> Vec<f64> {
+        let text = std::fs::read_to_string(d.join("metrics.csv")).unwrap();
+        let mut lines = text.lines();
+        let header: Vec<&str> = lines.next().unwrap().split(',').collect();
+        let row: Vec<&str> = lines.last().unwrap().split(',').collect();
+        ["momentum_x", "kinetic_energy"]
+            .iter()
+            .map(|k| {
+                row[header.iter().position(|h| h == k).unwrap()]
+                    .parse()
+                    .unwrap()
+            })
+            .collect()
+    };
+    let (pa, pc) = (last(&a), last(&c));
+    for (x, y) in pa.iter().zip(&pc) {
+        assert!(
+            (x - y).abs() <= 1e-3 * x.abs().max(1e-9),
+            "{pa:?} vs {pc:?}"
+        );
+    }
+}
