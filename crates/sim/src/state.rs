@@ -88,6 +88,10 @@ impl Fnv {
 /// The scene fields a resumed run may change: `time.duration` (a run continued further).
 const MAY_DIFFER: &[&str] = &["time.duration"];
 
+/// [`MAY_DIFFER`] with the `solver` section, compared on its own (as resolved, or for a
+/// branch free to differ).
+const MAY_DIFFER_BUT_SOLVER: &[&str] = &["time.duration", "solver"];
+
 /// The first place where two scenes (as JSON) differ, outside the paths `skip`: its path and
 /// both values.
 fn first_difference(
@@ -183,8 +187,7 @@ impl<const D: usize> World<D> {
             return first_difference("", &h.scene, scene, MAY_DIFFER)
                 .map_or(Ok(()), |d| Err(another(d)));
         };
-        let skip: Vec<&str> = MAY_DIFFER.iter().copied().chain(["solver"]).collect();
-        if let Some(d) = first_difference("", &h.scene, scene, &skip) {
+        if let Some(d) = first_difference("", &h.scene, scene, MAY_DIFFER_BUT_SOLVER) {
             return Err(another(d));
         }
         let now = serde_json::to_value(self.scene.spec().solver.resolved(D))
@@ -238,8 +241,9 @@ impl<const D: usize> World<D> {
         h: &StateHeader,
         scene: &serde_json::Value,
     ) -> Result<Option<(String, String, String)>, SimError> {
-        let skip: Vec<&str> = MAY_DIFFER.iter().copied().chain(["solver"]).collect();
-        if let Some((path, then, now)) = first_difference("", &h.scene, scene, &skip) {
+        if let Some((path, then, now)) =
+            first_difference("", &h.scene, scene, MAY_DIFFER_BUT_SOLVER)
+        {
             return Err(error(format!(
                 "taken of another scene: `{path}` was {then}, is {now} (a branch may change \
                  the `solver` section and time.duration only)"

@@ -1069,19 +1069,21 @@ pub(crate) fn friction_loop<const D: usize>(
         if !policy.any {
             break;
         }
-        // With Aitken's relaxation the residual it needs gives the change too (one unpacking
+        // With Aitken's or Anderson's mixing the residual it needs gives the change too (one unpacking
         // of `x`): its largest coordinate is `lag_distance`.
-        let change = if policy.anderson > 0 {
-            obj.lag_residual(x, &mut anderson.current);
-            anderson
-                .current
-                .iter()
-                .fold(0.0, |m: f64, d| m.max(d.abs()))
+        let residual = if policy.anderson > 0 {
+            Some(&mut anderson.current)
         } else if policy.aitken {
-            obj.lag_residual(x, &mut aitken.current);
-            aitken.current.iter().fold(0.0, |m: f64, d| m.max(d.abs()))
+            Some(&mut aitken.current)
         } else {
-            obj.lag_distance(x)
+            None
+        };
+        let change = match residual {
+            Some(r) => {
+                obj.lag_residual(x, r);
+                r.iter().fold(0.0, |m: f64, d| m.max(d.abs()))
+            }
+            None => obj.lag_distance(x),
         } / params.dt;
         if change < params.tolerance && exact {
             break;
@@ -1188,19 +1190,11 @@ fn lag_along<const D: usize>(
             .zip(&obj.lag.at)
             .map(|(now, at)| factor * (now - at)),
     );
-    let bound = femp_solver::Objective::max_step(obj, x, lag_point);
-    if bound.limit.is_some() || bound.alpha < 1.0 {
-        return false;
-    }
-    for (y, a) in lag_point.iter_mut().zip(x) {
-        *y += a;
-    }
-    obj.lag_friction(lag_point);
-    true
+    lag_by(obj, x, lag_point)
 }
 
 /// Lag the friction operator at `y` (in `lag_point`) if the straight path from `x` to it is
-/// feasible (`lag_point` then first holds the step `y − x`).
+/// feasible ([`lag_by`]).
 fn lag_at<const D: usize>(
     obj: &mut StepObjective<'_, D>,
     x: &[f64],
@@ -1209,12 +1203,22 @@ fn lag_at<const D: usize>(
     for (y, a) in lag_point.iter_mut().zip(x) {
         *y -= a;
     }
+    lag_by(obj, x, lag_point)
+}
+
+/// With the step `s` in `lag_point`: lag the friction operator at `x + s` (into `lag_point`)
+/// if the straight path there is feasible (no crossing, no inversion), else `false`.
+fn lag_by<const D: usize>(
+    obj: &mut StepObjective<'_, D>,
+    x: &[f64],
+    lag_point: &mut [f64],
+) -> bool {
     let bound = femp_solver::Objective::max_step(obj, x, lag_point);
-    for (y, a) in lag_point.iter_mut().zip(x) {
-        *y += a;
-    }
     if bound.limit.is_some() || bound.alpha < 1.0 {
         return false;
+    }
+    for (y, a) in lag_point.iter_mut().zip(x) {
+        *y += a;
     }
     obj.lag_friction(lag_point);
     true
